@@ -1,0 +1,37 @@
+"""Repository-wide test configuration.
+
+Real third-party data lives beside the repository in ``../shared/data`` (never copied in,
+for licence reasons; see its SOURCES.md). ``PYTEST_METAMORPHIC_DATA`` points elsewhere.
+Tests that need a file use the ``shared_data`` fixture and skip, naming the path, when the
+folder is absent.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+ROOT = Path(__file__).resolve().parent
+SHARED_DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
+
+# CI is auto-detected by Hypothesis (derandomized, no database). Our own suite keeps the
+# deadline off: SUTs here render or cluster 100k-point clouds, timing varies with load.
+settings.register_profile("repo", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("repo")
+
+
+def shared_data_path(*parts: str) -> Path:
+    """Path under the shared data folder; skips the calling test when it is absent."""
+    path = SHARED_DATA.joinpath(*parts)
+    if not path.exists():
+        pytest.skip(f"shared test data not found: {path} (set PYTEST_METAMORPHIC_DATA)")
+    return path
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    """The ``../shared/data`` folder; the test is skipped when it is absent."""
+    return shared_data_path()

@@ -1,0 +1,1 @@
+"""The domain-free engine: relations, verdicts, matching, the ``@metamorphic`` decorator."""

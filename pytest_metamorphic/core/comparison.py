@@ -1,0 +1,106 @@
+"""Deep equality and difference descriptions that understand numpy arrays.
+
+Used by the ``equal`` relation, by :class:`~pytest_metamorphic.core.matching.EqualityMatcher`
+and by the engine's determinism re-check, so all three agree on what "the same output" is.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import fields, is_dataclass
+from typing import Any
+
+__all__ = ["deep_equal", "describe_value", "first_difference"]
+
+_MAX_REPR = 120
+
+
+def describe_value(value: Any) -> str:
+    """A one-line, length-capped description, for failure messages."""
+    describe = getattr(value, "describe", None)
+    if callable(describe):
+        try:
+            return str(describe())
+        except Exception:  # noqa: BLE001 - a broken describe() must not hide the failure
+            pass
+    text = repr(value)
+    return text if len(text) <= _MAX_REPR else text[: _MAX_REPR - 3] + "..."
+
+
+def deep_equal(a: Any, b: Any) -> bool:
+    """True when ``a`` and ``b`` are equal; NaN equals NaN, arrays compare element-wise."""
+    return first_difference(a, b) is None
+
+
+def first_difference(a: Any, b: Any, path: str = "") -> str | None:
+    """Describe the first place where ``a`` and ``b`` differ, or None when they are equal."""
+    where = path or "the output"
+    if _is_array(a) or _is_array(b):
+        return _array_difference(a, b, where)
+    equals = getattr(a, "equals", None)
+    if callable(equals) and type(a) is type(b) and not isinstance(a, (str, bytes)):
+        # Domain types (PointCloud, ...) define exact equality themselves.
+        try:
+            return None if equals(b) else f"{where}: {describe_value(a)} != {describe_value(b)}"
+        except TypeError:
+            pass
+    if isinstance(a, Mapping) and isinstance(b, Mapping):
+        if a.keys() != b.keys():
+            missing = sorted(map(repr, a.keys() - b.keys()))
+            extra = sorted(map(repr, b.keys() - a.keys()))
+            return f"{where}: keys differ (only in first: {missing}, only in second: {extra})"
+        for key in a:
+            found = first_difference(a[key], b[key], f"{path}[{key!r}]")
+            if found:
+                return found
+        return None
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        if type(a) is not type(b):
+            return f"{where}: {type(a).__name__} != {type(b).__name__}"
+        if len(a) != len(b):
+            return f"{where}: length {len(a)} != {len(b)}"
+        for index, (x, y) in enumerate(zip(a, b)):
+            found = first_difference(x, y, f"{path}[{index}]")
+            if found:
+                return found
+        return None
+    if is_dataclass(a) and type(a) is type(b) and not isinstance(a, type):
+        for item in fields(a):
+            if not item.compare:
+                continue
+            found = first_difference(
+                getattr(a, item.name), getattr(b, item.name), f"{path}.{item.name}"
+            )
+            if found:
+                return found
+        return None
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return None
+    try:
+        same = bool(a == b)
+    except Exception:  # noqa: BLE001 - ambiguous __eq__ means "not provably equal"
+        same = False
+    return None if same else f"{where}: {describe_value(a)} != {describe_value(b)}"
+
+
+def _is_array(value: Any) -> bool:
+    return type(value).__module__ == "numpy" and hasattr(value, "shape")
+
+
+def _array_difference(a: Any, b: Any, where: str) -> str | None:
+    import numpy as np
+
+    x, y = np.asarray(a), np.asarray(b)
+    if x.shape != y.shape:
+        return f"{where}: shape {x.shape} != {y.shape}"
+    if x.dtype.kind in "fc" or y.dtype.kind in "fc":
+        same = (x == y) | (np.isnan(x) & np.isnan(y))
+    else:
+        same = x == y
+    same = np.asarray(same)
+    if same.all():
+        return None
+    index = tuple(int(i) for i in np.argwhere(~same)[0])
+    count = int((~same).sum())
+    return f"{where}{list(index)}: {x[index]!r} != {y[index]!r} ({count} element(s) differ)"

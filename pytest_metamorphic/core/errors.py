@@ -1,0 +1,73 @@
+"""Every exception type the project raises on purpose.
+
+Users catch these; the engine tells them apart (a violation is a failed check, a crash is
+an error in the system under test, bad input is the caller's fault).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "DataError",
+    "InvalidArgument",
+    "MetamorphicError",
+    "MetamorphicViolation",
+    "NondeterministicSystemError",
+    "SystemUnderTestCrash",
+]
+
+
+class MetamorphicError(Exception):
+    """Base class of every error pytest-metamorphic raises on purpose."""
+
+
+class InvalidArgument(MetamorphicError, TypeError, ValueError):
+    """A function or decorator was called with arguments it cannot use.
+
+    Raised early, at decoration or strategy-construction time, naming the argument.
+    Subclasses both TypeError and ValueError, like ``hypothesis.errors.InvalidArgument``
+    users expect one of the two.
+    """
+
+
+class DataError(MetamorphicError, ValueError):
+    """A file or an in-memory array is malformed.
+
+    The message names the file (or argument) and what is wrong with it. Readers let
+    no other exception type escape for bad input.
+    """
+
+    def __init__(self, message: str, *, path: object = None) -> None:
+        self.path = None if path is None else str(path)
+        super().__init__(f"{self.path}: {message}" if self.path else message)
+
+
+class MetamorphicViolation(AssertionError):
+    """A metamorphic relation does not hold between a source and a follow-up output.
+
+    An ``AssertionError`` so that pytest and Hypothesis treat it as a test failure.
+    """
+
+    def __init__(self, message: str, *, relation: str = "", verdict: object = None) -> None:
+        self.relation = relation
+        self.verdict = verdict
+        super().__init__(message)
+
+
+class SystemUnderTestCrash(MetamorphicError):
+    """The system under test raised an exception on a source or follow-up input.
+
+    The original exception is chained as ``__cause__``. ``stage`` is ``"source"`` or
+    ``"followup"``.
+    """
+
+    def __init__(self, message: str, *, stage: str, relation: str | None = None) -> None:
+        self.stage = stage
+        self.relation = relation
+        super().__init__(message)
+
+
+class NondeterministicSystemError(MetamorphicError):
+    """Running the system under test twice on the same source gave different outputs.
+
+    A relation violation would be meaningless then, so the engine reports this instead.
+    """

@@ -1,0 +1,1 @@
+"""Driving domain code: Euro NCAP AEB scenarios, OSM roads, kinematics, AEB controllers."""

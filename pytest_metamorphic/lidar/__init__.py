@@ -1,0 +1,1 @@
+"""LiDAR domain code: clouds, frames, ROI, obstacles, file IO, scans, reference perception."""

@@ -1,0 +1,250 @@
+"""The point-cloud type every LiDAR module shares.
+
+A :class:`PointCloud` holds ``n`` points as one contiguous ``(n, 4) float32`` array of
+x, y, z, intensity (the KITTI layout, so a ``.bin`` file maps onto it without copying)
+plus optional per-point fields (ring, time, ...) as 1-D arrays of length ``n``.
+
+Non-finite coordinates have an explicit policy: ``nonfinite="reject"`` (the default)
+raises :class:`~pytest_metamorphic.core.errors.DataError`; ``nonfinite="drop"`` removes
+those points and records how many in :attr:`PointCloud.dropped_nonfinite`. Nothing is
+dropped silently.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pytest_metamorphic.core.errors import DataError, InvalidArgument
+
+__all__ = ["COLUMNS", "NonFinitePolicy", "PointCloud"]
+
+COLUMNS = ("x", "y", "z", "intensity")
+NonFinitePolicy = Literal["reject", "drop"]
+
+
+class PointCloud:
+    """An immutable-by-convention LiDAR point cloud.
+
+    Parameters
+    ----------
+    points : (n, 3) or (n, 4) array_like
+      x, y, z[, intensity] in metres (sensor frame unless ``frame_id`` says otherwise).
+      Converted to a C-contiguous ``float32`` array; intensity defaults to 0.
+    fields : mapping of str to (n,) array_like, optional
+      Extra per-point fields such as ``ring`` or ``time``. Dtypes are kept.
+    frame_id : str
+      Coordinate frame name (ROS ``header.frame_id``).
+    timestamp : float or None
+      Seconds since the epoch, when known.
+    nonfinite : {"reject", "drop"}
+      What to do with points whose x, y, z or intensity is NaN or infinite.
+    name : str
+      What the cloud is called in error messages (usually the file it came from).
+
+    Attributes
+    ----------
+    points : (n, 4) float32
+      x, y, z, intensity.
+    fields : dict of str to (n,) ndarray
+    dropped_nonfinite : int
+      Points removed under ``nonfinite="drop"`` when this cloud was built.
+    """
+
+    __slots__ = ("dropped_nonfinite", "fields", "frame_id", "points", "timestamp")
+
+    def __init__(
+        self,
+        points: ArrayLike,
+        *,
+        fields: Mapping[str, ArrayLike] | None = None,
+        frame_id: str = "",
+        timestamp: float | None = None,
+        nonfinite: NonFinitePolicy = "reject",
+        name: str = "points",
+    ) -> None:
+        if nonfinite not in ("reject", "drop"):
+            raise InvalidArgument(f"nonfinite={nonfinite!r} must be 'reject' or 'drop'")
+        array = _as_points(points, name)
+        extra = {key: _as_field(value, key, len(array), name) for key, value in (fields or {}).items()}
+        finite = np.isfinite(array).all(axis=1)
+        dropped = int(len(array) - np.count_nonzero(finite))
+        if dropped:
+            if nonfinite == "reject":
+                first = int(np.flatnonzero(~finite)[0])
+                raise DataError(
+                    f"{name}: {dropped} point(s) have NaN or infinite values (first at row "
+                    f"{first}); pass nonfinite='drop' to remove and count them"
+                )
+            array = array[finite]
+            extra = {key: value[finite] for key, value in extra.items()}
+        self.points: NDArray[np.float32] = array
+        self.fields: dict[str, np.ndarray] = extra
+        self.frame_id = str(frame_id)
+        self.timestamp = None if timestamp is None else float(timestamp)
+        self.dropped_nonfinite = dropped
+
+    # -- construction helpers ------------------------------------------------------------
+
+    @classmethod
+    def _trusted(
+        cls,
+        points: NDArray[np.float32],
+        fields: dict[str, np.ndarray],
+        frame_id: str,
+        timestamp: float | None,
+        dropped_nonfinite: int = 0,
+    ) -> PointCloud:
+        """Build without validation from arrays already known to be well formed."""
+        cloud = object.__new__(cls)
+        cloud.points = points
+        cloud.fields = fields
+        cloud.frame_id = frame_id
+        cloud.timestamp = timestamp
+        cloud.dropped_nonfinite = dropped_nonfinite
+        return cloud
+
+    @classmethod
+    def empty(cls, *, fields: Mapping[str, np.dtype] | None = None, frame_id: str = "") -> PointCloud:
+        """A cloud with no points (and the given extra fields, if any)."""
+        extra = {key: np.empty(0, dtype=dtype) for key, dtype in (fields or {}).items()}
+        return cls._trusted(np.empty((0, 4), np.float32), extra, frame_id, None)
+
+    @classmethod
+    def concatenate(cls, clouds: Sequence[PointCloud]) -> PointCloud:
+        """Stack clouds; the result keeps the first cloud's frame id and timestamp.
+
+        All clouds must carry the same extra field names; dtypes are promoted by numpy.
+        """
+        clouds = list(clouds)
+        if not clouds:
+            raise InvalidArgument("concatenate() needs at least one cloud")
+        names = set(clouds[0].fields)
+        for index, cloud in enumerate(clouds):
+            if not isinstance(cloud, PointCloud):
+                raise InvalidArgument(f"clouds[{index}] is {type(cloud).__name__}, not PointCloud")
+            if set(cloud.fields) != names:
+                raise InvalidArgument(
+                    f"clouds[{index}] has fields {sorted(cloud.fields)}, clouds[0] has "
+                    f"{sorted(names)}; add or drop fields so they match"
+                )
+        points = np.concatenate([cloud.points for cloud in clouds])
+        fields = {key: np.concatenate([cloud.fields[key] for cloud in clouds]) for key in clouds[0].fields}
+        first = clouds[0]
+        return cls._trusted(points, fields, first.frame_id, first.timestamp)
+
+    # -- views ------------------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def xyz(self) -> NDArray[np.float32]:
+        """(n, 3) float32 view of the coordinates."""
+        return self.points[:, :3]
+
+    @property
+    def xy(self) -> NDArray[np.float32]:
+        """(n, 2) float32 view of the bird's-eye coordinates."""
+        return self.points[:, :2]
+
+    @property
+    def intensity(self) -> NDArray[np.float32]:
+        """(n,) float32 view of the intensities."""
+        return self.points[:, 3]
+
+    def __getitem__(self, index: slice | ArrayLike) -> PointCloud:
+        """Select points by boolean mask, integer indices or slice (fields follow)."""
+        if isinstance(index, slice):
+            selected = self.points[index]
+            fields = {key: value[index] for key, value in self.fields.items()}
+        else:
+            index = np.asarray(index)
+            if index.dtype == bool:
+                if index.shape != (len(self),):
+                    raise InvalidArgument(
+                        f"boolean mask has shape {index.shape}, the cloud has {len(self)} points"
+                    )
+            elif not np.issubdtype(index.dtype, np.integer):
+                raise InvalidArgument(f"cannot index a PointCloud with a {index.dtype} array")
+            selected = self.points[index]
+            fields = {key: value[index] for key, value in self.fields.items()}
+        return PointCloud._trusted(
+            np.ascontiguousarray(selected), fields, self.frame_id, self.timestamp
+        )
+
+    def with_points(self, points: ArrayLike, *, name: str = "points") -> PointCloud:
+        """The same metadata with new coordinates of the same length (fields are kept)."""
+        array = _as_points(points, name)
+        if len(array) != len(self):
+            raise InvalidArgument(f"{name} has {len(array)} rows, the cloud has {len(self)}")
+        if not np.isfinite(array).all():
+            raise DataError(f"{name}: NaN or infinite values")
+        return PointCloud._trusted(array, dict(self.fields), self.frame_id, self.timestamp)
+
+    def bounds(self) -> NDArray[np.float32]:
+        """(2, 4) float32: per-column minimum (row 0) and maximum (row 1).
+
+        Raises DataError for an empty cloud, which has no bounds.
+        """
+        if len(self) == 0:
+            raise DataError("an empty cloud has no bounds")
+        return np.stack([self.points.min(axis=0), self.points.max(axis=0)])
+
+    def equals(self, other: object) -> bool:
+        """Exact equality of points, fields (names, dtypes, values) and metadata."""
+        if not isinstance(other, PointCloud):
+            return False
+        if self.frame_id != other.frame_id or self.timestamp != other.timestamp:
+            return False
+        if not np.array_equal(self.points, other.points):
+            return False
+        if self.fields.keys() != other.fields.keys():
+            return False
+        return all(
+            self.fields[key].dtype == other.fields[key].dtype
+            and np.array_equal(self.fields[key], other.fields[key])
+            for key in self.fields
+        )
+
+    def __repr__(self) -> str:
+        # Short on purpose: Hypothesis prints this in every falsifying example.
+        extra = f", fields={sorted(self.fields)}" if self.fields else ""
+        frame = f", frame_id={self.frame_id!r}" if self.frame_id else ""
+        return f"PointCloud(<{len(self)} points>{extra}{frame})"
+
+
+def _as_points(points: ArrayLike, name: str) -> NDArray[np.float32]:
+    if isinstance(points, PointCloud):
+        return points.points
+    try:
+        array = np.asarray(points)
+    except (TypeError, ValueError) as error:
+        raise DataError(f"{name} cannot be converted to an array: {error}") from None
+    if array.ndim != 2 or array.shape[1] not in (3, 4):
+        raise DataError(f"{name} must have shape (n, 3) or (n, 4), got {array.shape}")
+    if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
+        raise DataError(f"{name} must be numeric, got dtype {array.dtype}")
+    if array.shape[1] == 3:
+        out = np.zeros((len(array), 4), np.float32)
+        out[:, :3] = array
+        return out
+    return np.ascontiguousarray(array, dtype=np.float32)
+
+
+def _as_field(value: ArrayLike, key: str, n: int, name: str) -> np.ndarray:
+    array = np.asarray(value)
+    if array.shape != (n,):
+        raise DataError(f"{name}: field {key!r} has shape {array.shape}, expected ({n},)")
+    return array
+
+
+def iter_chunks(cloud: PointCloud, size: int) -> Iterable[PointCloud]:
+    """Yield consecutive slices of at most ``size`` points."""
+    if size <= 0:
+        raise InvalidArgument(f"size={size} must be positive")
+    for start in range(0, len(cloud), size):
+        yield cloud[start : start + size]
