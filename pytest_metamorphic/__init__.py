@@ -32,7 +32,22 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "SystemUnderTestCrash": ("pytest_metamorphic.core.errors", "SystemUnderTestCrash"),
 }
 
-__all__ = ["__version__", *sorted(_LAZY)]
+__all__ = [  # noqa: RUF022 - grouped: API, relations, errors
+    "Followup",
+    "MetamorphicCase",
+    "MetamorphicRelation",
+    "metamorphic",
+    "Relation",
+    "Verdict",
+    "relations",
+    "DataError",
+    "InvalidArgument",
+    "MetamorphicError",
+    "MetamorphicViolation",
+    "NondeterministicSystemError",
+    "SystemUnderTestCrash",
+    "__version__",
+]
 
 if TYPE_CHECKING:  # pragma: no cover
     from pytest_metamorphic.core import relations

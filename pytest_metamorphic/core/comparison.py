@@ -22,7 +22,7 @@ def describe_value(value: Any) -> str:
     if callable(describe):
         try:
             return str(describe())
-        except Exception:  # noqa: BLE001 - a broken describe() must not hide the failure
+        except Exception:
             pass
     text = repr(value)
     return text if len(text) <= _MAX_REPR else text[: _MAX_REPR - 3] + "..."
@@ -33,9 +33,9 @@ def deep_equal(a: Any, b: Any) -> bool:
     return first_difference(a, b) is None
 
 
-def first_difference(a: Any, b: Any, path: str = "") -> str | None:
+def first_difference(a: Any, b: Any, path: str = "output") -> str | None:
     """Describe the first place where ``a`` and ``b`` differ, or None when they are equal."""
-    where = path or "the output"
+    where = path
     if _is_array(a) or _is_array(b):
         return _array_difference(a, b, where)
     equals = getattr(a, "equals", None)
@@ -60,7 +60,7 @@ def first_difference(a: Any, b: Any, path: str = "") -> str | None:
             return f"{where}: {type(a).__name__} != {type(b).__name__}"
         if len(a) != len(b):
             return f"{where}: length {len(a)} != {len(b)}"
-        for index, (x, y) in enumerate(zip(a, b)):
+        for index, (x, y) in enumerate(zip(a, b, strict=True)):
             found = first_difference(x, y, f"{path}[{index}]")
             if found:
                 return found
@@ -79,7 +79,7 @@ def first_difference(a: Any, b: Any, path: str = "") -> str | None:
         return None
     try:
         same = bool(a == b)
-    except Exception:  # noqa: BLE001 - ambiguous __eq__ means "not provably equal"
+    except Exception:
         same = False
     return None if same else f"{where}: {describe_value(a)} != {describe_value(b)}"
 

@@ -14,6 +14,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
 
 from pytest_metamorphic.core.errors import InvalidArgument
 
@@ -82,8 +83,6 @@ def one_to_one(
     list of (i, j)
       Matched pairs, sorted by ``i``; every pair is compatible.
     """
-    from scipy.optimize import linear_sum_assignment
-
     compatible = np.asarray(compatible, dtype=bool)
     if compatible.ndim != 2:
         raise InvalidArgument(f"compatible must be 2-D, got shape {compatible.shape}")
@@ -101,4 +100,4 @@ def one_to_one(
     penalty = float(shifted.sum()) + 1.0
     matrix = np.where(compatible, shifted, penalty)
     rows, cols = linear_sum_assignment(matrix)
-    return [(int(i), int(j)) for i, j in zip(rows, cols) if compatible[i, j]]
+    return [(int(i), int(j)) for i, j in zip(rows, cols, strict=True) if compatible[i, j]]

@@ -1,0 +1,433 @@
+"""The ``@metamorphic`` decorator: source inputs, follow-ups, relation checks.
+
+A metamorphic test is a Hypothesis test over :class:`MetamorphicCase` values: a source
+input plus, for every :class:`MetamorphicRelation`, a few follow-up inputs drawn from the
+relation's transform. Both are drawn through Hypothesis, so a failure shrinks the source
+*and* the transform parameters. For each case the engine runs the system under test (the
+decorated function) once on the source, reuses that output for every follow-up, and
+checks each relation; a failed check raises :class:`MetamorphicViolation`.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.errors import HypothesisException
+from hypothesis.strategies import SearchStrategy
+
+from pytest_metamorphic.core.comparison import describe_value, first_difference
+from pytest_metamorphic.core.errors import (
+    InvalidArgument,
+    MetamorphicViolation,
+    NondeterministicSystemError,
+    SystemUnderTestCrash,
+)
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.core.stats import DEFAULT_FOLLOWUPS, current_recorder
+
+__all__ = ["Followup", "MetamorphicCase", "MetamorphicRelation", "metamorphic"]
+
+CASE_ARGUMENT = "case"
+_MAX_FOLLOWUPS = 100
+
+
+@dataclass(frozen=True)
+class Followup:
+    """A follow-up input together with the transform parameters that made it.
+
+    Transforms may yield plain inputs; yield ``Followup(value, params={...})`` when the
+    parameters (a rotation angle, the injected points) should appear in failure messages
+    and reports.
+    """
+
+    input: Any
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        params = f", params={dict(self.params)!r}" if self.params else ""
+        return f"Followup({self.input!r}{params})"
+
+
+@dataclass(frozen=True)
+class MetamorphicRelation:
+    """A named pair of an input transform and an output relation.
+
+    Parameters
+    ----------
+    name : str
+        Shown in failures and reports; unique within one test.
+    followup : callable(source_input) -> SearchStrategy
+        Draws follow-up inputs for a source input. The strategy may yield plain inputs or
+        :class:`Followup` values carrying the transform parameters.
+    relation : Relation
+        How the follow-up output must relate to the source output.
+    """
+
+    name: str
+    followup: Callable[[Any], SearchStrategy[Any]]
+    relation: Relation
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise InvalidArgument(f"name={self.name!r} must be a non-empty string")
+        _check_transform(self.followup, f"followup of relation {self.name!r}")
+        if not isinstance(self.relation, Relation):
+            raise InvalidArgument(
+                f"relation={self.relation!r} of {self.name!r} must be a Relation "
+                "(e.g. relations.equal()); did you forget the parentheses?"
+                if callable(self.relation)
+                else f"relation={self.relation!r} of {self.name!r} must be a Relation, "
+                "e.g. relations.equal() or relations.predicate(fn)"
+            )
+
+
+@dataclass(frozen=True)
+class MetamorphicCase:
+    """One drawn test case: a source input and its follow-ups per relation name."""
+
+    source: Any
+    followups: Mapping[str, tuple[Followup, ...]]
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{name!r}: {list(items)!r}" for name, items in self.followups.items())
+        return f"MetamorphicCase(source={self.source!r}, followups={{{parts}}})"
+
+
+def _check_transform(followup: Any, what: str) -> None:
+    if isinstance(followup, SearchStrategy):
+        raise InvalidArgument(
+            f"{what} is a strategy; it must be a function of the source input returning a "
+            f"strategy, e.g. lambda source: {followup!r}"
+        )
+    if not callable(followup):
+        raise InvalidArgument(
+            f"{what} must be callable(source_input) -> strategy, got {followup!r}"
+        )
+    try:
+        signature = inspect.signature(followup)
+    except (TypeError, ValueError):
+        return  # builtins without signatures: trust them
+    try:
+        signature.bind(object())
+    except TypeError:
+        raise InvalidArgument(
+            f"{what} must accept exactly one argument (the source input); its signature is "
+            f"{signature}"
+        ) from None
+
+
+def _resolve_relations(
+    followup: Any, relation: Any, relations: Any
+) -> tuple[MetamorphicRelation, ...]:
+    if relations is not None:
+        if followup is not None or relation is not None:
+            raise InvalidArgument("pass either followup= and relation=, or relations=, not both")
+        if isinstance(relations, MetamorphicRelation):
+            relations = [relations]
+        if not isinstance(relations, Sequence) or not relations:
+            raise InvalidArgument(
+                f"relations={relations!r} must be a non-empty list of MetamorphicRelation"
+            )
+        for index, item in enumerate(relations):
+            if not isinstance(item, MetamorphicRelation):
+                raise InvalidArgument(
+                    f"relations[{index}] is {item!r}; wrap transform and relation in "
+                    "MetamorphicRelation(name, followup, relation)"
+                )
+        names = [item.name for item in relations]
+        duplicates = sorted({name for name in names if names.count(name) > 1})
+        if duplicates:
+            raise InvalidArgument(f"relation names must be unique, repeated: {duplicates}")
+        return tuple(relations)
+    if followup is None or relation is None:
+        raise InvalidArgument(
+            "@metamorphic needs followup= and relation= (or relations=[MetamorphicRelation...])"
+        )
+    name = getattr(relation, "name", None) if isinstance(relation, Relation) else None
+    return (MetamorphicRelation(name or "relation", followup, relation),)
+
+
+def _validate_followups(followups: Any) -> int | None:
+    if followups is None:
+        return None
+    if isinstance(followups, bool) or not isinstance(followups, int):
+        raise InvalidArgument(
+            f"followups={followups!r} must be an int between 1 and {_MAX_FOLLOWUPS}"
+        )
+    if not 1 <= followups <= _MAX_FOLLOWUPS:
+        raise InvalidArgument(f"followups={followups} must be between 1 and {_MAX_FOLLOWUPS}")
+    return followups
+
+
+def _draw_followups(
+    draw: Callable[[SearchStrategy[Any]], Any], mr: MetamorphicRelation, source: Any, count: int
+) -> tuple[Followup, ...]:
+    strategy = mr.followup(source)
+    if not isinstance(strategy, SearchStrategy):
+        raise InvalidArgument(
+            f"followup of relation {mr.name!r} returned {describe_value(strategy)}, not a "
+            "Hypothesis strategy; return e.g. st.just(value) or st.permutations(source)"
+        )
+    items = []
+    for _ in range(count):
+        value = draw(strategy)
+        items.append(value if isinstance(value, Followup) else Followup(value))
+    return tuple(items)
+
+
+def _cases(
+    source: SearchStrategy[Any], mrs: tuple[MetamorphicRelation, ...], followups: int | None
+) -> SearchStrategy[MetamorphicCase]:
+    @st.composite
+    def cases(draw: Callable[[SearchStrategy[Any]], Any]) -> MetamorphicCase:
+        # Resolved per draw so that --mt-followups applies to tests that did not fix it.
+        recorder = current_recorder()
+        count = followups or (recorder.followups if recorder else DEFAULT_FOLLOWUPS)
+        value = draw(source)
+        return MetamorphicCase(
+            value, {mr.name: _draw_followups(draw, mr, value, count) for mr in mrs}
+        )
+
+    return cases()
+
+
+def _input_parameter(fn: Callable[..., Any]) -> tuple[str, list[inspect.Parameter]]:
+    signature = inspect.signature(fn)
+    parameters = list(signature.parameters.values())
+    if not parameters or parameters[0].kind not in (
+        inspect.Parameter.POSITIONAL_ONLY,
+        inspect.Parameter.POSITIONAL_OR_KEYWORD,
+    ):
+        raise InvalidArgument(
+            f"{fn.__qualname__} must take the input as its first positional parameter "
+            "(further parameters are pytest fixtures)"
+        )
+    fixtures = parameters[1:]
+    for parameter in fixtures:
+        if parameter.kind in (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD):
+            raise InvalidArgument(f"{fn.__qualname__}: *args/**kwargs cannot be pytest fixtures")
+        if parameter.name == CASE_ARGUMENT:
+            raise InvalidArgument(
+                f"{fn.__qualname__}: the parameter name {CASE_ARGUMENT!r} is used by "
+                "@metamorphic for the drawn case; rename your fixture"
+            )
+    return parameters[0].name, fixtures
+
+
+class _Runner:
+    """Executes one drawn case against the system under test."""
+
+    def __init__(
+        self,
+        fn: Callable[..., Any],
+        mrs: tuple[MetamorphicRelation, ...],
+        check_determinism: bool | None,
+    ) -> None:
+        self.fn = fn
+        self.mrs = mrs
+        self.check_determinism = check_determinism
+
+    def __call__(self, case: MetamorphicCase, fixtures: dict[str, Any]) -> None:
+        recorder = current_recorder()
+        source_output = self._run(case.source, fixtures, "the source input", "source", None)
+        if recorder:
+            recorder.source_calls += 1
+        for mr in self.mrs:
+            stats = recorder.relation(mr.name) if recorder else None
+            if stats:
+                stats.sources += 1
+            items = case.followups[mr.name]
+            for index, item in enumerate(items):
+                what = f"follow-up {index} of relation {mr.name!r}"
+                try:
+                    output = self._run(item.input, fixtures, what, "followup", mr.name)
+                finally:
+                    if stats:
+                        stats.followups += 1
+                        stats.sut_calls += 1
+                context = CheckContext(case.source, item.input, item.params, index)
+                verdict = mr.relation.check(source_output, output, context)
+                if not verdict.holds:
+                    self._confirm_deterministic(case, source_output, fixtures, mr, stats)
+                    if stats:
+                        stats.violations += 1
+                    if recorder:
+                        recorder.violations.append(
+                            {
+                                "relation": mr.name,
+                                "index": index,
+                                "explanation": verdict.explanation,
+                            }
+                        )
+                    raise _violation(mr, verdict, item, index, len(items), source_output, output)
+
+    def _run(
+        self, value: Any, fixtures: dict[str, Any], what: str, stage: str, relation: str | None
+    ) -> Any:
+        try:
+            return self.fn(value, **fixtures)
+        except HypothesisException:
+            raise  # assume(), reject(): Hypothesis control flow, not a crash
+        except Exception as error:
+            recorder = current_recorder()
+            if recorder:
+                if relation is None:
+                    recorder.source_crashes += 1
+                else:
+                    recorder.relation(relation).crashes += 1
+            raise SystemUnderTestCrash(
+                f"the system under test crashed on {what}: {type(error).__name__}: {error}",
+                stage=stage,
+                relation=relation,
+            ) from error
+
+    def _confirm_deterministic(
+        self,
+        case: MetamorphicCase,
+        source_output: Any,
+        fixtures: dict[str, Any],
+        mr: MetamorphicRelation,
+        stats: Any,
+    ) -> None:
+        recorder = current_recorder()
+        enabled = self.check_determinism
+        if enabled is None:
+            enabled = recorder.check_determinism if recorder else True
+        if not enabled:
+            return
+        again = self._run(case.source, fixtures, "the source input (re-run)", "source", None)
+        if stats:
+            stats.sut_calls += 1
+        difference = first_difference(source_output, again)
+        if difference is not None:
+            if stats:
+                stats.nondeterministic += 1
+            raise NondeterministicSystemError(
+                f"the system under test is nondeterministic: running it twice on the same "
+                f"source input gave different outputs ({difference}), so relation "
+                f"{mr.name!r} cannot be judged. Fix the seed or the order dependence, or pass "
+                "check_determinism=False if you know what you are doing."
+            )
+
+
+def _violation(
+    mr: MetamorphicRelation,
+    verdict: Verdict,
+    item: Followup,
+    index: int,
+    total: int,
+    source_output: Any,
+    followup_output: Any,
+) -> MetamorphicViolation:
+    lines = [
+        f"metamorphic relation {mr.name!r} violated on follow-up {index} of {total} "
+        f"(check: {verdict.relation})",
+    ]
+    if item.params:
+        lines.append(f"  transform parameters: {_short_params(item.params)}")
+    lines.append(f"  {verdict.explanation}")
+    lines.append(f"  source output:    {describe_value(source_output)}")
+    lines.append(f"  follow-up output: {describe_value(followup_output)}")
+    error = MetamorphicViolation("\n".join(lines), relation=mr.name, verdict=verdict)
+    error.followup = item
+    error.source_output = source_output
+    error.followup_output = followup_output
+    return error
+
+
+def _short_params(params: Mapping[str, Any]) -> str:
+    return "{" + ", ".join(f"{key}={describe_value(value)}" for key, value in params.items()) + "}"
+
+
+def metamorphic(
+    *,
+    source: SearchStrategy[Any],
+    followup: Callable[[Any], SearchStrategy[Any]] | None = None,
+    relation: Relation | None = None,
+    relations: Sequence[MetamorphicRelation] | None = None,
+    followups: int | None = None,
+    check_determinism: bool | None = None,
+) -> Callable[[Callable[..., Any]], Callable[..., None]]:
+    """Turn a function that runs the system under test into a metamorphic Hypothesis test.
+
+    Parameters
+    ----------
+    source : SearchStrategy
+        Draws source inputs.
+    followup : callable(source_input) -> SearchStrategy, optional
+        The input transform of a single relation (use with ``relation``).
+    relation : Relation, optional
+        The output relation of that single relation.
+    relations : sequence of MetamorphicRelation, optional
+        Several relations sharing one system under test (instead of followup/relation).
+    followups : int, optional
+        Follow-ups per source and relation, 1..100; default ``--mt-followups`` (2).
+    check_determinism : bool, optional
+        Before reporting a violation, re-run the system on the source and raise
+        :class:`NondeterministicSystemError` if the output changed. On by default;
+        ``--mt-no-determinism-check`` switches the default off.
+
+    The decorated function takes the input as its first parameter (more parameters are
+    pytest fixtures) and returns the system's output. Stack ``@settings(...)`` on top as
+    with ``@given``.
+    """
+    if not isinstance(source, SearchStrategy):
+        raise InvalidArgument(f"source={source!r} must be a Hypothesis strategy")
+    mrs = _resolve_relations(followup, relation, relations)
+    count = _validate_followups(followups)
+    if check_determinism is not None and not isinstance(check_determinism, bool):
+        raise InvalidArgument(f"check_determinism={check_determinism!r} must be a bool")
+
+    def decorate(fn: Callable[..., Any]) -> Callable[..., None]:
+        if not callable(fn):
+            raise InvalidArgument(f"@metamorphic must decorate a function, got {fn!r}")
+        if getattr(fn, "is_hypothesis_test", False):
+            raise InvalidArgument(
+                f"{fn.__qualname__} is already a Hypothesis test; use @metamorphic instead of "
+                "@given, not both"
+            )
+        if inspect.iscoroutinefunction(fn):
+            raise InvalidArgument(
+                f"{fn.__qualname__} is async; @metamorphic needs a plain function"
+            )
+        _, fixtures = _input_parameter(fn)
+        runner = _Runner(fn, mrs, check_determinism)
+
+        @functools.wraps(fn)
+        def test(**kwargs: Any) -> None:
+            case = kwargs.pop(CASE_ARGUMENT)
+            runner(case, kwargs)
+
+        del test.__wrapped__  # pytest and Hypothesis must see our signature, not fn's
+        test.__signature__ = inspect.Signature(
+            [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in fixtures]
+            + [inspect.Parameter(CASE_ARGUMENT, inspect.Parameter.KEYWORD_ONLY)]
+        )
+        wrapped = given(**{CASE_ARGUMENT: _cases(source, mrs, count)})(test)
+        # One example runs the system 1 + followups x relations times, so Hypothesis's
+        # per-example deadline would misfire on any real system. A user's @settings on top
+        # replaces this default entirely, as it does for @given.
+        wrapped._hypothesis_internal_use_settings = settings(
+            wrapped._hypothesis_internal_use_settings, deadline=None
+        )
+        wrapped._metamorphic = MetamorphicSpec(source, mrs, count, check_determinism, fn)
+        return wrapped
+
+    return decorate
+
+
+@dataclass(frozen=True)
+class MetamorphicSpec:
+    """What ``@metamorphic`` was given; the plugin and campaign mode read it."""
+
+    source: SearchStrategy[Any]
+    relations: tuple[MetamorphicRelation, ...]
+    followups: int | None
+    check_determinism: bool | None
+    function: Callable[..., Any]

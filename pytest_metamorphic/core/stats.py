@@ -1,0 +1,83 @@
+"""Per-test counters the engine fills in and the pytest plugin reports.
+
+The plugin opens a :class:`Recorder` around each test call (:func:`recording`); the engine
+finds it with :func:`current_recorder`. Without the plugin there is no recorder and nothing
+is counted, which costs nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+__all__ = ["Recorder", "RelationStats", "current_recorder", "recording"]
+
+DEFAULT_FOLLOWUPS = 2
+
+
+@dataclass
+class RelationStats:
+    """Counts for one metamorphic relation of one test.
+
+    ``sut_calls`` counts the follow-up executions and determinism re-runs this relation
+    caused; the source execution is shared by all relations of a test and counted once in
+    :attr:`Recorder.source_calls`.
+    """
+
+    sources: int = 0
+    followups: int = 0
+    sut_calls: int = 0
+    violations: int = 0
+    crashes: int = 0
+    nondeterministic: int = 0
+
+    def add(self, other: RelationStats) -> None:
+        for name, value in asdict(other).items():
+            setattr(self, name, getattr(self, name) + value)
+
+
+@dataclass
+class Recorder:
+    """Everything counted while one test ran, plus the options it ran under."""
+
+    followups: int = DEFAULT_FOLLOWUPS
+    check_determinism: bool = True
+    source_calls: int = 0
+    source_crashes: int = 0
+    relations: dict[str, RelationStats] = field(default_factory=dict)
+    violations: list[dict[str, Any]] = field(default_factory=list)
+
+    def relation(self, name: str) -> RelationStats:
+        return self.relations.setdefault(name, RelationStats())
+
+    @property
+    def sut_calls(self) -> int:
+        return self.source_calls + sum(stats.sut_calls for stats in self.relations.values())
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "source_calls": self.source_calls,
+            "source_crashes": self.source_crashes,
+            "sut_calls": self.sut_calls,
+            "relations": {name: asdict(stats) for name, stats in self.relations.items()},
+        }
+
+
+_CURRENT: ContextVar[Recorder | None] = ContextVar("pytest_metamorphic_recorder", default=None)
+
+
+def current_recorder() -> Recorder | None:
+    """The recorder of the test running now, or None outside the plugin."""
+    return _CURRENT.get()
+
+
+@contextmanager
+def recording(recorder: Recorder) -> Iterator[Recorder]:
+    token = _CURRENT.set(recorder)
+    try:
+        yield recorder
+    finally:
+        _CURRENT.reset(token)
