@@ -234,6 +234,7 @@ class _Runner:
         self.check_determinism = check_determinism
 
     def __call__(self, case: MetamorphicCase, fixtures: dict[str, Any]) -> None:
+        __tracebackhide__ = True  # failures should show the user's frames, not the engine's
         recorder = current_recorder()
         source_output = self._run(case.source, fixtures, "the source input", "source", None)
         if recorder:
@@ -270,6 +271,7 @@ class _Runner:
     def _run(
         self, value: Any, fixtures: dict[str, Any], what: str, stage: str, relation: str | None
     ) -> Any:
+        __tracebackhide__ = True
         try:
             return self.fn(value, **fixtures)
         except HypothesisException:
@@ -401,6 +403,7 @@ def metamorphic(
 
         @functools.wraps(fn)
         def test(**kwargs: Any) -> None:
+            __tracebackhide__ = True
             case = kwargs.pop(CASE_ARGUMENT)
             runner(case, kwargs)
 

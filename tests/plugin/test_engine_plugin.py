@@ -1,0 +1,390 @@
+"""End-to-end tests of ``@metamorphic`` and the plugin, through pytest's ``pytester``."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import pytest
+
+HEADER = """
+from hypothesis import settings, strategies as st
+from pytest_metamorphic import MetamorphicRelation, Followup, metamorphic, relations
+"""
+
+
+def _write(pytester: pytest.Pytester, body: str) -> None:
+    pytester.makepyfile(test_mt=HEADER + body)
+
+
+def test_passing_relation_reports_counts(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+@settings(max_examples=20, database=None)
+@metamorphic(source=st.lists(st.integers()), followup=lambda xs: st.permutations(xs),
+             relation=relations.equal(), followups=3)
+def test_sort(xs):
+    return sorted(xs)
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(passed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*= metamorphic relations =*",
+            "test *relation*sources*follow-ups*SUT calls*violations*crashes",
+            "test_mt.py::test_sort*equal*20*60*60*0*0",
+        ]
+    )
+
+
+def test_violation_message_names_relation_and_difference(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+def broken_sort(xs):
+    return sorted(xs) if len(xs) < 3 else list(xs)
+
+@settings(database=None)
+@metamorphic(source=st.lists(st.integers()), followup=lambda xs: st.permutations(xs),
+             relation=relations.equal())
+def test_sort(xs):
+    return broken_sort(xs)
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*MetamorphicViolation: metamorphic relation 'equal' violated on follow-up *",
+            "*follow-up * differs from the source output: output[[]*[]]: * != *",
+            "*source output:*",
+            "*follow-up output:*",
+            "*Failing test case: test_sort(*",
+        ]
+    )
+
+
+def test_planted_bug_shrinks_to_minimal_input(pytester: pytest.Pytester) -> None:
+    # The bug: duplicates are dropped when the list has more than two elements. The
+    # smallest source that exposes it under "appending an element keeps |O| growing" is a
+    # list of two equal zeros with 0 appended.
+    _write(
+        pytester,
+        """
+def dedupe_sort(xs):
+    return sorted(set(xs)) if len(xs) > 2 else sorted(xs)
+
+@settings(database=None, max_examples=500)
+@metamorphic(
+    source=st.lists(st.integers()),
+    followup=lambda xs: st.integers().map(lambda x: Followup(xs + [x], params={"appended": x})),
+    relation=relations.cardinality("<"),
+    followups=1,
+)
+def test_append_grows(xs):
+    return dedupe_sort(xs)
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*transform parameters: {appended=0}*",
+            "*the source output has 2 element(s), follow-up 0 has 1; expected |O| < |O'|*",
+            "*MetamorphicCase(source=[[]0, 0[]],*",
+        ]
+    )
+
+
+def test_crash_on_source_is_reported_as_crash(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+@settings(database=None)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+def test_div(x):
+    return 10 // x
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        ["*SystemUnderTestCrash: the system under test crashed on the source input: "
+         "ZeroDivisionError*"]
+    )
+    result.stdout.no_fnmatch_line("*MetamorphicViolation*")
+
+
+def test_crash_on_followup_names_relation_and_index(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+@settings(database=None)
+@metamorphic(source=st.integers(1, 100), followup=lambda x: st.just(-x),
+             relation=relations.equal(), followups=1)
+def test_sqrt(x):
+    if x < 0:
+        raise ValueError("negative input")
+    return x
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        ["*SystemUnderTestCrash: the system under test crashed on follow-up 0 of relation "
+         "'equal': ValueError: negative input*"]
+    )
+    result.stdout.re_match_lines([r"test_mt.py::test_sqrt\s+equal(\s+\d+){4}\s+[1-9]\d*$"])
+
+
+def test_nondeterministic_system_is_not_blamed_on_followup(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+import itertools
+counter = itertools.count()
+
+@settings(database=None)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+def test_counter(x):
+    return next(counter)
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        ["*NondeterministicSystemError: the system under test is nondeterministic*"]
+    )
+
+
+def test_determinism_check_can_be_switched_off(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+import itertools
+counter = itertools.count()
+
+@settings(database=None)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+def test_counter(x):
+    return next(counter)
+""",
+    )
+    result = pytester.runpytest("--mt-no-determinism-check")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*MetamorphicViolation*"])
+    result.stdout.no_fnmatch_line("*Nondeterministic*")
+
+
+def test_source_output_is_computed_once_per_case(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+calls = []
+
+@settings(database=None, max_examples=30)
+@metamorphic(
+    source=st.lists(st.integers(), max_size=5),
+    relations=[
+        MetamorphicRelation("permute", lambda xs: st.permutations(xs), relations.equal()),
+        MetamorphicRelation("reverse", lambda xs: st.just(xs[::-1]), relations.equal()),
+    ],
+    followups=3,
+)
+def test_sort(xs):
+    calls.append(tuple(xs))
+    return sorted(xs)
+
+def test_zz_count():
+    # 1 source run + 2 relations x 3 follow-ups per example, never the source twice.
+    assert len(calls) == 30 * 7
+""",
+    )
+    result = pytester.runpytest("-p", "no:randomly", "--mt-report", "report.json")
+    result.assert_outcomes(passed=2)
+    report = json.loads((pytester.path / "report.json").read_text())
+    (test,) = report["tests"]
+    assert test["source_calls"] == 30
+    assert test["sut_calls"] == 30 * 7
+    assert test["relations"]["permute"]["followups"] == 90
+
+
+def test_followups_option_applies_when_decorator_does_not_fix_it(
+    pytester: pytest.Pytester,
+) -> None:
+    _write(
+        pytester,
+        """
+@settings(database=None, max_examples=10)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+def test_identity(x):
+    return x
+""",
+    )
+    result = pytester.runpytest("--mt-followups", "5")
+    result.assert_outcomes(passed=1)
+    result.stdout.fnmatch_lines(["test_mt.py::test_identity*equal*10*50*50*0*0"])
+
+
+def test_fixtures_keep_working(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+import pytest
+
+@pytest.fixture(scope="module")
+def offset():
+    return 7
+
+@settings(database=None, max_examples=10)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+def test_with_fixture(x, offset):
+    return x + offset
+""",
+    )
+    pytester.runpytest().assert_outcomes(passed=1)
+
+
+def test_junit_properties(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+@settings(database=None, max_examples=10)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal(),
+             followups=2)
+def test_identity(x):
+    return x
+""",
+    )
+    pytester.runpytest("--junitxml=junit.xml").assert_outcomes(passed=1)
+    tree = ET.parse(pytester.path / "junit.xml")
+    properties = {p.get("name"): p.get("value") for p in tree.iter("property")}
+    assert properties["mt.equal.sources"] == "10"
+    assert properties["mt.equal.followups"] == "20"
+    assert properties["mt.equal.violations"] == "0"
+    assert properties["mt.sut_calls"] == "30"
+
+
+def test_xdist_aggregates_counts_from_workers(pytester: pytest.Pytester) -> None:
+    pytest.importorskip("xdist")
+    body = "".join(
+        f"""
+@settings(database=None, max_examples={10 + i})
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal(),
+             followups=2)
+def test_identity_{i}(x):
+    return x
+"""
+        for i in range(4)
+    )
+    _write(pytester, body)
+    result = pytester.runpytest_subprocess("-n", "2", "--mt-report", "report.json")
+    result.assert_outcomes(passed=4)
+    result.stdout.fnmatch_lines(["*= metamorphic relations =*", "4 metamorphic test(s), *"])
+    report = json.loads((pytester.path / "report.json").read_text())
+    sources = sorted(t["relations"]["equal"]["sources"] for t in report["tests"])
+    assert sources == [10, 11, 12, 13]
+    assert sum(t["sut_calls"] for t in report["tests"]) == 3 * (10 + 11 + 12 + 13)
+
+
+@pytest.mark.parametrize(
+    ("decorator", "message"),
+    [
+        ("source=[1, 2], followup=lambda x: st.just(x), relation=relations.equal()",
+         "source=[[]1, 2[]] must be a Hypothesis strategy"),
+        ("source=st.integers(), followup=st.just(1), relation=relations.equal()",
+         "followup of relation 'equal' is a strategy*"),
+        ("source=st.integers(), followup=lambda a, b: st.just(a), relation=relations.equal()",
+         "*must accept exactly one argument*"),
+        ("source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal",
+         "*did you forget the parentheses?*"),
+        ("source=st.integers(), followup=lambda x: st.just(x)",
+         "@metamorphic needs followup= and relation=*"),
+        ("source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal(), "
+         "followups=0", "followups=0 must be between 1 and 100"),
+    ],
+)
+def test_bad_decorator_arguments_fail_at_collection(
+    pytester: pytest.Pytester, decorator: str, message: str
+) -> None:
+    _write(pytester, f"\n@metamorphic({decorator})\ndef test_x(x):\n    return x\n")
+    result = pytester.runpytest()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines([f"*InvalidArgument: {message}"])
+
+
+def test_transform_not_returning_a_strategy_is_a_clear_error(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+@metamorphic(source=st.integers(), followup=lambda x: [x], relation=relations.equal())
+def test_x(x):
+    return x
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        ["*InvalidArgument: followup of relation 'equal' returned [[]0[]], not a Hypothesis "
+         "strategy*"]
+    )
+
+
+def test_given_and_metamorphic_together_is_an_error(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+from hypothesis import given
+
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+@given(st.integers())
+def test_x(x):
+    return x
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines(["*already a Hypothesis test; use @metamorphic instead of @given*"])
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--mt-followups", "0"], "--mt-followups=0 must be between 1 and 100"),
+        (["-o", "mt_followups=many"], "ini mt_followups='many' must be an integer"),
+    ],
+)
+def test_bad_configuration_is_a_usage_error(
+    pytester: pytest.Pytester, args: list[str], message: str
+) -> None:
+    pytester.makepyfile(test_x="def test_x():\n    pass\n")
+    result = pytester.runpytest(*args)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([f"*{message}*"])
+
+
+def test_report_path_that_is_a_directory_is_a_usage_error(pytester: pytest.Pytester) -> None:
+    pytester.mkdir("out")
+    pytester.makepyfile(test_x="def test_x():\n    pass\n")
+    result = pytester.runpytest("--mt-report", "out")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--mt-report=out is a directory*"])
+
+
+def test_marker_is_added_and_selectable(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+@settings(database=None, max_examples=5)
+@metamorphic(source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal())
+def test_mt(x):
+    return x
+
+def test_plain():
+    pass
+""",
+    )
+    result = pytester.runpytest("-m", "metamorphic")
+    result.assert_outcomes(passed=1, deselected=1)
