@@ -111,8 +111,10 @@ def test_div(x):
     result = pytester.runpytest()
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(
-        ["*SystemUnderTestCrash: the system under test crashed on the source input: "
-         "ZeroDivisionError*"]
+        [
+            "*SystemUnderTestCrash: the system under test crashed on the source input: "
+            "ZeroDivisionError*"
+        ]
     )
     result.stdout.no_fnmatch_line("*MetamorphicViolation*")
 
@@ -133,8 +135,10 @@ def test_sqrt(x):
     result = pytester.runpytest()
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(
-        ["*SystemUnderTestCrash: the system under test crashed on follow-up 0 of relation "
-         "'equal': ValueError: negative input*"]
+        [
+            "*SystemUnderTestCrash: the system under test crashed on follow-up 0 of relation "
+            "'equal': ValueError: negative input*"
+        ]
     )
     result.stdout.re_match_lines([r"test_mt.py::test_sqrt\s+equal(\s+\d+){4}\s+[1-9]\d*$"])
 
@@ -292,18 +296,31 @@ def test_identity_{i}(x):
 @pytest.mark.parametrize(
     ("decorator", "message"),
     [
-        ("source=[1, 2], followup=lambda x: st.just(x), relation=relations.equal()",
-         "source=[[]1, 2[]] must be a Hypothesis strategy"),
-        ("source=st.integers(), followup=st.just(1), relation=relations.equal()",
-         "followup of relation 'equal' is a strategy*"),
-        ("source=st.integers(), followup=lambda a, b: st.just(a), relation=relations.equal()",
-         "*must accept exactly one argument*"),
-        ("source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal",
-         "*did you forget the parentheses?*"),
-        ("source=st.integers(), followup=lambda x: st.just(x)",
-         "@metamorphic needs followup= and relation=*"),
-        ("source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal(), "
-         "followups=0", "followups=0 must be between 1 and 100"),
+        (
+            "source=[1, 2], followup=lambda x: st.just(x), relation=relations.equal()",
+            "source=[[]1, 2[]] must be a Hypothesis strategy",
+        ),
+        (
+            "source=st.integers(), followup=st.just(1), relation=relations.equal()",
+            "followup of relation 'equal' is a strategy*",
+        ),
+        (
+            "source=st.integers(), followup=lambda a, b: st.just(a), relation=relations.equal()",
+            "*must accept exactly one argument*",
+        ),
+        (
+            "source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal",
+            "*did you forget the parentheses?*",
+        ),
+        (
+            "source=st.integers(), followup=lambda x: st.just(x)",
+            "@metamorphic needs followup= and relation=*",
+        ),
+        (
+            "source=st.integers(), followup=lambda x: st.just(x), relation=relations.equal(), "
+            "followups=0",
+            "followups=0 must be between 1 and 100",
+        ),
     ],
 )
 def test_bad_decorator_arguments_fail_at_collection(
@@ -327,8 +344,10 @@ def test_x(x):
     result = pytester.runpytest()
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(
-        ["*InvalidArgument: followup of relation 'equal' returned [[]0[]], not a Hypothesis "
-         "strategy*"]
+        [
+            "*InvalidArgument: followup of relation 'equal' returned [[]0[]], not a Hypothesis "
+            "strategy*"
+        ]
     )
 
 
