@@ -1,0 +1,1 @@
+"""Summaries and reports built from what the engine recorded."""
