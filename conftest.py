@@ -17,9 +17,13 @@ from hypothesis import HealthCheck, settings
 ROOT = Path(__file__).resolve().parent
 SHARED_DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
 
-# CI is auto-detected by Hypothesis (derandomized, no database). Our own suite keeps the
-# deadline off: SUTs here render or cluster 100k-point clouds, timing varies with load.
-settings.register_profile("repo", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# Under CI Hypothesis's own "ci" profile (derandomized, no database) stays the base. Our
+# suite keeps the deadline off: SUTs here render or cluster 100k-point clouds, and timing
+# varies with load.
+_base = settings.get_profile("ci") if os.environ.get("CI") else settings.get_profile("default")
+settings.register_profile(
+    "repo", parent=_base, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 settings.load_profile("repo")
 
 
