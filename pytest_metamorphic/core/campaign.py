@@ -1,0 +1,441 @@
+"""Campaigns: violation rates from independent sampling.
+
+Hypothesis searches for failures; it does not sample independently, so it cannot say how
+*often* a relation fails. A :class:`Campaign` does: S sources, each perturbed at every size
+in ``sizes`` ``followups`` times, all drawn from NumPy generators seeded by
+``(seed, source index, ...)``. Every unit of work therefore has its own random stream, so
+the result does not depend on the order, the process (pytest-xdist shards) or on resuming
+an interrupted run.
+
+Results are appended to a JSONL log as each source finishes (flushed and fsynced): an
+interrupted campaign loses at most the source in progress and resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pytest_metamorphic.core.comparison import describe_value
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.intervals import Rate, wilson
+from pytest_metamorphic.core.relations import CheckContext, Relation
+
+__all__ = [
+    "Campaign",
+    "CampaignResult",
+    "SizeCounts",
+    "merge_results",
+    "run_campaign",
+    "shard_indices",
+]
+
+LOG_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """An i.i.d. violation-rate experiment on one system under test.
+
+    Parameters
+    ----------
+    name : str
+    source : callable(rng, index) -> source input
+        Draws (or loads) source ``index`` using ``rng`` (a ``numpy.random.Generator``).
+    followup : callable(source_input, size, rng) -> follow-up input
+        Perturbs the source with ``size`` elements (e.g. injected points).
+    system : callable(input) -> output
+        The system under test; run once per source (the output is reused) and once per
+        follow-up.
+    relation : Relation
+        The strict relation counted as a violation (e.g. ``subset`` for MR1).
+    sizes : sequence of int
+        Perturbation sizes, e.g. ``(10, 100, 1000)``.
+    sources : int
+        Number of sources S.
+    followups : int
+        Follow-ups per source and size F.
+    seed : int
+    category : callable(element) -> str, optional
+        Category of an output element (e.g. a box's label) for per-category breakdowns.
+    """
+
+    name: str
+    source: Callable[[np.random.Generator, int], Any]
+    followup: Callable[[Any, int, np.random.Generator], Any]
+    system: Callable[[Any], Any]
+    relation: Relation
+    sizes: Sequence[int] = (10, 100, 1000)
+    sources: int = 1000
+    followups: int = 1
+    seed: int = 0
+    category: Callable[[Any], str] | None = None
+
+    def __post_init__(self) -> None:
+        for argument in ("source", "followup", "system"):
+            if not callable(getattr(self, argument)):
+                raise InvalidArgument(f"{argument}={getattr(self, argument)!r} must be callable")
+        if not isinstance(self.relation, Relation):
+            raise InvalidArgument(f"relation={self.relation!r} must be a Relation")
+        sizes = tuple(self.sizes)
+        if not sizes or any(not isinstance(n, int) or n < 0 for n in sizes):
+            raise InvalidArgument(f"sizes={self.sizes!r} must be a non-empty list of ints >= 0")
+        object.__setattr__(self, "sizes", sizes)
+        for argument in ("sources", "followups"):
+            value = getattr(self, argument)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InvalidArgument(f"{argument}={value!r} must be an int >= 1")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidArgument(f"seed={self.seed!r} must be an int >= 0")
+
+    def header(self) -> dict[str, Any]:
+        """What identifies this campaign's results: a log is resumable only if it matches."""
+        return {
+            "version": LOG_VERSION,
+            "campaign": self.name,
+            "relation": self.relation.name,
+            "seed": self.seed,
+            "sources": self.sources,
+            "sizes": list(self.sizes),
+            "followups": self.followups,
+        }
+
+    def source_rng(self, index: int) -> np.random.Generator:
+        return np.random.default_rng([self.seed, index])
+
+    def followup_rng(self, index: int, size_index: int, followup: int) -> np.random.Generator:
+        # A longer entropy tuple than source_rng's, so the streams never coincide.
+        return np.random.default_rng([self.seed, index, 1 + size_index, followup])
+
+
+@dataclass
+class SizeCounts:
+    """Tallies for one perturbation size; all fields add up across shards."""
+
+    pairs: int = 0
+    fewer: int = 0  # |O| > |O'|
+    equal: int = 0
+    more: int = 0  # |O| < |O'|
+    violations: int = 0
+    crashes: int = 0
+    # category -> [pairs where that category lost elements, kept count, gained]
+    categories: dict[str, list[int]] = field(default_factory=dict)
+
+    def add(self, other: SizeCounts) -> None:
+        for name in ("pairs", "fewer", "equal", "more", "violations", "crashes"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        for category, counts in other.categories.items():
+            mine = self.categories.setdefault(category, [0, 0, 0])
+            for i in range(3):
+                mine[i] += counts[i]
+
+    def rate(self, name: str) -> Rate:
+        return wilson(getattr(self, name), self.pairs)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "pairs": self.pairs,
+            "fewer": self.fewer,
+            "equal": self.equal,
+            "more": self.more,
+            "violations": self.violations,
+            "crashes": self.crashes,
+            "categories": {k: list(v) for k, v in sorted(self.categories.items())},
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> SizeCounts:
+        counts = cls(**{k: v for k, v in data.items() if k != "categories"})
+        counts.categories = {k: list(v) for k, v in data.get("categories", {}).items()}
+        return counts
+
+
+@dataclass
+class CampaignResult:
+    """Aggregated campaign results; mergeable, and identical however the work was split."""
+
+    header: dict[str, Any]
+    sizes: dict[int, SizeCounts]
+    sources_done: set[int] = field(default_factory=set)
+    sut_calls: int = 0
+    source_crashes: int = 0
+    examples: list[dict[str, Any]] = field(default_factory=list)
+    keep_examples: int = 20
+
+    @property
+    def complete(self) -> bool:
+        return len(self.sources_done) == self.header["sources"]
+
+    @property
+    def sut_calls_saved(self) -> int:
+        """SUT runs caching avoided: without it every pair would re-run its source."""
+        return sum(counts.pairs for counts in self.sizes.values()) - len(self.sources_done)
+
+    def merge(self, other: CampaignResult) -> None:
+        if other.header != self.header:
+            raise InvalidArgument("cannot merge results of different campaigns")
+        overlap = self.sources_done & other.sources_done
+        if overlap:
+            raise InvalidArgument(f"sources counted twice when merging: {sorted(overlap)[:5]}")
+        for size, counts in other.sizes.items():
+            self.sizes.setdefault(size, SizeCounts()).add(counts)
+        self.sources_done |= other.sources_done
+        self.sut_calls += other.sut_calls
+        self.source_crashes += other.source_crashes
+        self.examples.extend(other.examples)
+        self._trim_examples()
+
+    def _trim_examples(self) -> None:
+        # The first violations in (source, size, follow-up) order: the same set whichever
+        # way the sources were split over shards.
+        self.examples.sort(key=lambda e: (e["source"], e["size"], e["followup"]))
+        del self.examples[self.keep_examples :]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "header": self.header,
+            "complete": self.complete,
+            "sources_done": len(self.sources_done),
+            "sut_calls": self.sut_calls,
+            "sut_calls_saved": self.sut_calls_saved,
+            "source_crashes": self.source_crashes,
+            "sizes": {
+                str(size): {
+                    **counts.to_json(),
+                    "rates": {
+                        name: counts.rate(name).to_json()
+                        for name in ("fewer", "equal", "more", "violations")
+                    },
+                }
+                for size, counts in sorted(self.sizes.items())
+            },
+            "examples": self.examples,
+        }
+
+
+def shard_indices(sources: int, shard: int, shards: int) -> range:
+    """Source indices of one shard: every ``shards``-th index starting at ``shard``."""
+    if not 0 <= shard < shards:
+        raise InvalidArgument(f"shard={shard} must be in [0, {shards})")
+    return range(shard, sources, shards)
+
+
+def _count(elements: Any, category: Callable[[Any], str] | None) -> tuple[int, dict[str, int]]:
+    items = list(elements)
+    if category is None:
+        return len(items), {}
+    by_category: dict[str, int] = {}
+    for item in items:
+        key = str(category(item))
+        by_category[key] = by_category.get(key, 0) + 1
+    return len(items), by_category
+
+
+def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
+    """All pairs of one source, as one JSON-ready record."""
+    rng = campaign.source_rng(index)
+    record: dict[str, Any] = {"source": index, "pairs": [], "sut_calls": 0}
+    try:
+        source_input = campaign.source(rng, index)
+        source_output = campaign.system(source_input)
+    except Exception as error:
+        record["sut_calls"] = 1
+        record["crash"] = f"{type(error).__name__}: {error}"
+        return record
+    record["sut_calls"] = 1
+    n_source, source_categories = _count(source_output, campaign.category)
+    for size_index, size in enumerate(campaign.sizes):
+        for f in range(campaign.followups):
+            pair: dict[str, Any] = {"size": size, "followup": f}
+            record["pairs"].append(pair)
+            record["sut_calls"] += 1
+            try:
+                followup = campaign.followup(
+                    source_input, size, campaign.followup_rng(index, size_index, f)
+                )
+                followup_input = getattr(followup, "input", followup)
+                params = getattr(followup, "params", {})
+                followup_output = campaign.system(followup_input)
+            except Exception as error:
+                pair["crash"] = f"{type(error).__name__}: {error}"
+                continue
+            n_followup, followup_categories = _count(followup_output, campaign.category)
+            verdict = campaign.relation.check(
+                source_output,
+                followup_output,
+                CheckContext(source_input, followup_input, params, f),
+            )
+            pair["o"], pair["o2"] = n_source, n_followup
+            pair["holds"] = verdict.holds
+            if source_categories or followup_categories:
+                pair["categories"] = {
+                    key: [source_categories.get(key, 0), followup_categories.get(key, 0)]
+                    for key in sorted(set(source_categories) | set(followup_categories))
+                }
+            if not verdict.holds:
+                pair["explanation"] = verdict.explanation
+                pair["source_output"] = describe_value(source_output)
+    return record
+
+
+def _tally(result: CampaignResult, record: dict[str, Any]) -> None:
+    result.sources_done.add(record["source"])
+    result.sut_calls += record["sut_calls"]
+    if "crash" in record:
+        result.source_crashes += 1
+        return
+    for pair in record["pairs"]:
+        counts = result.sizes.setdefault(pair["size"], SizeCounts())
+        counts.pairs += 1
+        if "crash" in pair:
+            counts.crashes += 1
+            continue
+        o, o2 = pair["o"], pair["o2"]
+        if o > o2:
+            counts.fewer += 1
+        elif o == o2:
+            counts.equal += 1
+        else:
+            counts.more += 1
+        if not pair["holds"]:
+            counts.violations += 1
+            result.examples.append({"source": record["source"], **pair})
+        for category, (a, b) in pair.get("categories", {}).items():
+            slot = counts.categories.setdefault(category, [0, 0, 0])
+            slot[0 if a > b else 1 if a == b else 2] += 1
+
+
+def _read_log(path: Path, header: dict[str, Any]) -> Iterator[dict[str, Any]]:
+    with path.open(encoding="utf-8") as handle:
+        lines = handle.read().splitlines()
+    if not lines:
+        return
+    try:
+        found = json.loads(lines[0])
+    except json.JSONDecodeError:
+        raise InvalidArgument(f"{path}: first line is not a campaign header") from None
+    if found != header:
+        raise InvalidArgument(
+            f"{path} holds results of a different campaign ({found}); expected {header}. "
+            "Use another log path or the same seed and parameters."
+        )
+    for number, line in enumerate(lines[1:], start=2):
+        try:
+            yield json.loads(line)
+        except json.JSONDecodeError:
+            if number == len(lines):
+                return  # a line cut off by an interruption: that source is simply redone
+            raise InvalidArgument(f"{path}:{number}: corrupt campaign record") from None
+
+
+def _set_aside(path: Path) -> None:
+    """Keep an earlier log instead of overwriting it: nothing recorded is lost."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    target = path.with_name(f"{path.stem}.{stamp}{path.suffix}")
+    counter = 1
+    while target.exists():
+        target = path.with_name(f"{path.stem}.{stamp}-{counter}{path.suffix}")
+        counter += 1
+    path.rename(target)
+
+
+def run_campaign(
+    campaign: Campaign,
+    *,
+    log: Path | str | None = None,
+    resume: bool = False,
+    shard: int = 0,
+    shards: int = 1,
+    keep_examples: int = 20,
+    progress: Callable[[int, int], None] | None = None,
+) -> CampaignResult:
+    """Run (a shard of) a campaign and return its aggregated result.
+
+    Parameters
+    ----------
+    log : path, optional
+        JSONL file: a header line, then one record per finished source, flushed as it
+        comes. An existing log is renamed aside unless ``resume`` is true.
+    resume : bool
+        Continue the run recorded in ``log``: finished sources are read back, not redone.
+    shard, shards : int
+        Run only the sources ``shard, shard + shards, ...``; results of all shards merge
+        (:meth:`CampaignResult.merge`) into exactly the one-process result.
+    keep_examples : int
+        How many violating pairs to keep in the result for reports.
+    progress : callable(done, total), optional
+    """
+    if not isinstance(campaign, Campaign):
+        raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
+    header = campaign.header()
+    result = CampaignResult(
+        header, {size: SizeCounts() for size in campaign.sizes}, keep_examples=keep_examples
+    )
+    indices = shard_indices(campaign.sources, shard, shards)
+    done: set[int] = set()
+    path = None if log is None else Path(log)
+    if path is not None and path.exists() and path.stat().st_size:
+        if resume:
+            for record in _read_log(path, header):
+                if record["source"] in indices and record["source"] not in done:
+                    done.add(record["source"])
+                    _tally(result, record)
+        else:
+            _set_aside(path)
+    todo = [index for index in indices if index not in done]
+    with _open_log(path, header) as write:
+        for count, index in enumerate(todo, start=1):
+            record = _run_source(campaign, index)
+            write(record)
+            _tally(result, record)
+            result._trim_examples()
+            if progress:
+                progress(len(done) + count, len(indices))
+    result._trim_examples()
+    return result
+
+
+@contextmanager
+def _open_log(
+    path: Path | None, header: dict[str, Any]
+) -> Iterator[Callable[[dict[str, Any]], None]]:
+    """Append records to ``path``, each flushed and fsynced before the next source runs."""
+    if path is None:
+        yield lambda record: None
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fresh = not path.exists() or path.stat().st_size == 0
+    with path.open("a", encoding="utf-8") as handle:
+
+        def write(record: dict[str, Any]) -> None:
+            handle.write(json.dumps(record, separators=(",", ":")) + "\n")
+            handle.flush()
+            os.fsync(handle.fileno())
+
+        if fresh:
+            write(header)
+        yield write
+
+
+def merge_results(results: Iterable[CampaignResult]) -> CampaignResult:
+    """Merge shard results into one (raises if they belong to different campaigns)."""
+    results = list(results)
+    if not results:
+        raise InvalidArgument("merge_results() needs at least one result")
+    first = results[0]
+    merged = CampaignResult(
+        first.header,
+        {int(k): SizeCounts() for k in first.header["sizes"]},
+        keep_examples=max(r.keep_examples for r in results),
+    )
+    for result in results:
+        merged.merge(result)
+    return merged

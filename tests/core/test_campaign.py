@@ -1,0 +1,171 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pytest_metamorphic import InvalidArgument, relations
+from pytest_metamorphic.core.campaign import Campaign, merge_results, run_campaign
+from pytest_metamorphic.core.intervals import wilson
+
+
+def test_wilson_matches_published_values() -> None:
+    # Reference values: Newcombe (1998), Table I, and the closed form.
+    rate = wilson(0, 10)
+    assert rate.low == 0.0 and rate.high == pytest.approx(0.2775, abs=1e-4)
+    rate = wilson(5, 10)
+    assert (rate.low, rate.high) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+    rate = wilson(81, 263)
+    assert (rate.low, rate.high) == pytest.approx((0.2553, 0.3662), abs=1e-4)
+    assert str(wilson(0, 0)) == "n/a"
+    with pytest.raises(InvalidArgument, match="need 0 <= k <= n"):
+        wilson(3, 2)
+
+
+class Lossy:
+    """A system that drops one detection with probability ~ size / 200, reproducibly."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def __call__(self, scene: tuple[int, tuple[str, ...], int]) -> list[str]:
+        self.calls += 1
+        _, objects, noise = scene
+        lose = noise > 0 and np.random.default_rng(noise).random() < noise / 2000
+        return list(objects[1:] if lose else objects)
+
+
+def source(rng: np.random.Generator, index: int) -> tuple[int, tuple[str, ...], int]:
+    labels = ("car", "pedestrian", "cyclist")
+    return index, tuple(rng.choice(labels, size=int(rng.integers(1, 4)))), 0
+
+
+def followup(scene: tuple[int, tuple[str, ...], int], size: int, rng: np.random.Generator):
+    return scene[0], scene[1], int(rng.integers(1, 10**6)) % (size * 10) + 1
+
+
+def campaign(system: Lossy, sources: int = 60) -> Campaign:
+    return Campaign(
+        name="toy MR1",
+        source=source,
+        followup=followup,
+        system=system,
+        relation=relations.subset(),
+        sizes=(10, 100),
+        sources=sources,
+        followups=2,
+        seed=7,
+        category=str,
+    )
+
+
+def test_campaign_counts_rates_and_caching() -> None:
+    system = Lossy()
+    result = run_campaign(campaign(system))
+    assert result.complete
+    assert system.calls == result.sut_calls == 60 * (1 + 2 * 2)
+    assert result.sut_calls_saved == 60 * 4 - 60
+    small, large = result.sizes[10], result.sizes[100]
+    assert small.pairs == large.pairs == 120
+    assert small.fewer + small.equal + small.more == 120
+    assert small.violations == small.fewer  # losing one detection is both
+    assert large.violations > small.violations
+    assert sum(sum(v) for v in large.categories.values()) >= large.pairs
+    data = result.to_json()
+    assert data["sizes"]["100"]["rates"]["violations"]["k"] == large.violations
+    assert result.examples and "has no match in follow-up" in result.examples[0]["explanation"]
+
+
+def test_shards_merge_to_the_single_process_result() -> None:
+    whole = run_campaign(campaign(Lossy()))
+    parts = [run_campaign(campaign(Lossy()), shard=i, shards=3) for i in range(3)]
+    merged = merge_results(parts)
+    assert merged.to_json() == whole.to_json()
+
+
+class Interrupt(BaseException):
+    pass
+
+
+def test_interrupted_campaign_resumes_without_redoing_work(tmp_path: Path) -> None:
+    log = tmp_path / "campaign.jsonl"
+    system = Lossy()
+
+    def progress(done: int, total: int) -> None:
+        if done == 25:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        run_campaign(campaign(system), log=log, progress=progress)
+    lines = log.read_text().splitlines()
+    assert len(lines) == 1 + 25  # header + every finished source, nothing lost
+    # Simulate a record cut off mid-write by the interruption.
+    log.write_text("\n".join(lines) + '\n{"source": 25, "pai')
+
+    resumed_system = Lossy()
+    resumed = run_campaign(campaign(resumed_system), log=log, resume=True)
+    assert resumed_system.calls == 35 * 5  # only the sources not finished before
+    assert resumed.to_json() == run_campaign(campaign(Lossy())).to_json()
+
+
+def test_resume_refuses_a_log_of_another_campaign(tmp_path: Path) -> None:
+    log = tmp_path / "c.jsonl"
+    run_campaign(campaign(Lossy(), sources=3), log=log)
+    with pytest.raises(InvalidArgument, match="holds results of a different campaign"):
+        run_campaign(campaign(Lossy(), sources=4), log=log, resume=True)
+
+
+def test_rerun_without_resume_keeps_the_old_log(tmp_path: Path) -> None:
+    log = tmp_path / "c.jsonl"
+    run_campaign(campaign(Lossy(), sources=3), log=log)
+    run_campaign(campaign(Lossy(), sources=3), log=log)
+    logs = sorted(tmp_path.glob("c*.jsonl"))
+    assert len(logs) == 2
+    assert all(json.loads(p.read_text().splitlines()[0])["sources"] == 3 for p in logs)
+
+
+def test_crashes_are_counted_not_fatal() -> None:
+    def fragile(scene):
+        if scene[2] % 3 == 0 and scene[2]:
+            raise RuntimeError("boom")
+        return list(scene[1])
+
+    result = run_campaign(
+        Campaign(
+            "fragile",
+            source,
+            followup,
+            fragile,
+            relations.subset(),
+            sizes=(10,),
+            sources=30,
+            followups=3,
+            seed=1,
+        )
+    )
+    assert result.sizes[10].crashes > 0
+    assert result.sizes[10].pairs == 90
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"sizes": ()}, r"sizes=\(\) must be a non-empty list"),
+        ({"sources": 0}, "sources=0 must be an int >= 1"),
+        ({"relation": "subset"}, "relation='subset' must be a Relation"),
+        ({"seed": -1}, "seed=-1 must be an int >= 0"),
+    ],
+)
+def test_bad_campaign_arguments(kwargs: dict, message: str) -> None:
+    arguments = {
+        "name": "x",
+        "source": source,
+        "followup": followup,
+        "system": Lossy(),
+        "relation": relations.subset(),
+        **kwargs,
+    }
+    with pytest.raises(InvalidArgument, match=message):
+        Campaign(**arguments)
