@@ -169,3 +169,32 @@ def test_bad_campaign_arguments(kwargs: dict, message: str) -> None:
     }
     with pytest.raises(InvalidArgument, match=message):
         Campaign(**arguments)
+
+
+def test_reports_table_markdown_json_and_chart(tmp_path: Path) -> None:
+    from pytest_metamorphic.reports.campaign import (
+        format_table,
+        write_chart,
+        write_json,
+        write_markdown,
+    )
+
+    result = run_campaign(campaign(Lossy(), sources=20))
+    lines = format_table(result)
+    assert lines[0].startswith("campaign 'toy MR1', seed 7, 20 sources x 2 sizes x 2 follow-up(s)")
+    assert "|O| > |O'|" in lines[1] and "violations of subset[equality]" in lines[1]
+    assert any(line.split()[:2] == ["100", "40"] for line in lines)
+    write_markdown(result, tmp_path / "r.md")
+    assert "| n | pairs |" in (tmp_path / "r.md").read_text()
+    write_json(result, tmp_path / "r.json")
+    assert json.loads((tmp_path / "r.json").read_text())["complete"] is True
+    pytest.importorskip("matplotlib")
+    write_chart(result, tmp_path / "r.png")
+    assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_partial_result_says_it_is_partial(tmp_path: Path) -> None:
+    from pytest_metamorphic.reports.campaign import format_table
+
+    partial = run_campaign(campaign(Lossy(), sources=20), shard=0, shards=2)
+    assert "PARTIAL: 10 of 20 sources" in format_table(partial)[0]

@@ -1,0 +1,184 @@
+"""Campaign reports: the paper's table, Markdown, JSON and a Fig. 3-style chart."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from pytest_metamorphic.core.campaign import CampaignResult, SizeCounts
+from pytest_metamorphic.core.intervals import wilson
+
+__all__ = ["format_table", "to_markdown", "write_chart", "write_json", "write_markdown"]
+
+_OUTCOMES = ("fewer", "equal", "more")
+_HEADINGS = {"fewer": "|O| > |O'|", "equal": "|O| = |O'|", "more": "|O| < |O'|"}
+
+
+def _cell(k: int, n: int) -> str:
+    return f"{k} ({wilson(k, n)})"
+
+
+def _rows(result: CampaignResult) -> list[list[str]]:
+    rows = []
+    for size, counts in sorted(result.sizes.items()):
+        rows.append(
+            [
+                str(size),
+                str(counts.pairs),
+                *(_cell(getattr(counts, name), counts.pairs) for name in _OUTCOMES),
+                _cell(counts.violations, counts.pairs),
+                str(counts.crashes),
+            ]
+        )
+    return rows
+
+
+def _header(result: CampaignResult) -> list[str]:
+    return [
+        "n",
+        "pairs",
+        *(_HEADINGS[name] for name in _OUTCOMES),
+        f"violations of {result.header['relation']}",
+        "crashes",
+    ]
+
+
+def _category_rows(result: CampaignResult) -> list[list[str]]:
+    rows = []
+    for size, counts in sorted(result.sizes.items()):
+        for category, (lost, kept, gained) in sorted(counts.categories.items()):
+            total = lost + kept + gained
+            rows.append(
+                [
+                    str(size),
+                    category,
+                    str(total),
+                    _cell(lost, total),
+                    _cell(kept, total),
+                    _cell(gained, total),
+                ]
+            )
+    return rows
+
+
+def _status(result: CampaignResult) -> str:
+    done, total = len(result.sources_done), result.header["sources"]
+    state = "complete" if result.complete else f"PARTIAL: {done} of {total} sources"
+    return (
+        f"campaign {result.header['campaign']!r}, seed {result.header['seed']}, "
+        f"{done} sources x {len(result.sizes)} sizes x {result.header['followups']} follow-up(s) "
+        f"({state}); {result.sut_calls} SUT calls, {result.sut_calls_saved} saved by reusing "
+        f"source outputs; rates with Wilson 95% intervals"
+    )
+
+
+def _align(rows: list[list[str]]) -> list[str]:
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    return ["  ".join(cell.rjust(widths[i]) for i, cell in enumerate(row)) for row in rows]
+
+
+def format_table(result: CampaignResult) -> list[str]:
+    """Terminal lines: the paper's table per n, then the per-category breakdown."""
+    lines = [_status(result), *_align([_header(result), *_rows(result)])]
+    categories = _category_rows(result)
+    if categories:
+        lines.append("per category (pairs whose count of that category fell / stayed / rose):")
+        lines.extend(_align([["n", "category", "pairs", "fewer", "same", "more"], *categories]))
+    if result.source_crashes:
+        lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
+    return lines
+
+
+def _markdown_table(header: list[str], rows: list[list[str]]) -> str:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out.extend("| " + " | ".join(row) + " |" for row in rows)
+    return "\n".join(out)
+
+
+def to_markdown(result: CampaignResult) -> str:
+    parts = [f"# Campaign {result.header['campaign']}", "", _status(result), ""]
+    parts.append(_markdown_table(_header(result), _rows(result)))
+    categories = _category_rows(result)
+    if categories:
+        parts += ["", "## Per category", ""]
+        parts.append(
+            _markdown_table(["n", "category", "pairs", "fewer", "same", "more"], categories)
+        )
+    if result.examples:
+        parts += ["", "## First violations", ""]
+        for example in result.examples:
+            parts.append(
+                f"- source {example['source']}, n={example['size']}, follow-up "
+                f"{example['followup']}: {example.get('explanation', '')}"
+            )
+    return "\n".join(parts) + "\n"
+
+
+def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Write to a temporary file and rename: an interruption never leaves half a report."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_json(result: CampaignResult, path: Path) -> None:
+    _atomic_write(path, lambda p: p.write_text(json.dumps(result.to_json(), indent=2)))
+
+
+def write_markdown(result: CampaignResult, path: Path) -> None:
+    _atomic_write(path, lambda p: p.write_text(to_markdown(result), encoding="utf-8"))
+
+
+def write_chart(result: CampaignResult, path: Path) -> None:
+    """100% stacked columns per category and n, like the paper's Fig. 3 (needs matplotlib)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sizes = sorted(result.sizes)
+    categories = sorted({c for counts in result.sizes.values() for c in counts.categories})
+    groups: list[tuple[str, SizeCounts | list[int]]] = []
+    for category in categories or ["all"]:
+        for size in sizes:
+            counts = result.sizes[size]
+            values = (
+                counts.categories.get(category, [0, 0, 0])
+                if categories
+                else [counts.fewer, counts.equal, counts.more]
+            )
+            groups.append((f"{category}\nn={size}", values))
+    figure, axes = plt.subplots(figsize=(max(6.0, 0.7 * len(groups)), 4.5))
+    bottoms = [0.0] * len(groups)
+    colours = {"fewer": "#d62728", "equal": "#bbbbbb", "more": "#1f77b4"}
+    labels = {"fewer": "fewer in O'", "equal": "same", "more": "more in O'"}
+    for slot, name in enumerate(_OUTCOMES):
+        heights = []
+        for _, values in groups:
+            total = sum(values)
+            heights.append(100.0 * values[slot] / total if total else 0.0)
+        axes.bar(
+            range(len(groups)), heights, bottom=bottoms, color=colours[name], label=labels[name]
+        )
+        bottoms = [b + h for b, h in zip(bottoms, heights, strict=True)]
+    axes.set_xticks(range(len(groups)), [label for label, _ in groups], fontsize=8)
+    axes.set_ylabel("% of source/follow-up pairs")
+    axes.set_ylim(0, 100)
+    title = f"{result.header['campaign']}: objects per category, O vs O'"
+    if not result.complete:
+        title += " (PARTIAL)"
+    axes.set_title(title)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
+    figure.tight_layout()
+    _atomic_write(path, lambda p: figure.savefig(p, dpi=110, format="png"))
+    plt.close(figure)
