@@ -33,7 +33,9 @@ __all__ = [
     "Campaign",
     "CampaignResult",
     "SizeCounts",
+    "campaign_test",
     "merge_results",
+    "result_from_json",
     "run_campaign",
     "shard_indices",
 ]
@@ -203,6 +205,7 @@ class CampaignResult:
         return {
             "header": self.header,
             "complete": self.complete,
+            "source_indices": sorted(self.sources_done),
             "sources_done": len(self.sources_done),
             "sut_calls": self.sut_calls,
             "sut_calls_saved": self.sut_calls_saved,
@@ -219,6 +222,49 @@ class CampaignResult:
             },
             "examples": self.examples,
         }
+
+
+def result_from_json(data: dict[str, Any]) -> CampaignResult:
+    """Rebuild a result from :meth:`CampaignResult.to_json` (e.g. sent by an xdist worker)."""
+    return CampaignResult(
+        header=data["header"],
+        sizes={
+            int(k): SizeCounts.from_json({key: value for key, value in v.items() if key != "rates"})
+            for k, v in data["sizes"].items()
+        },
+        sources_done=set(data["source_indices"]),
+        sut_calls=data["sut_calls"],
+        source_crashes=data["source_crashes"],
+        examples=list(data["examples"]),
+        keep_examples=max(20, len(data["examples"])),
+    )
+
+
+def campaign_test(campaign: Campaign, *, shards: int = 8) -> Callable[..., None]:
+    """A pytest test that runs ``campaign`` under ``--mt-campaign`` (skipped otherwise).
+
+    The test is parametrized over ``shards`` fixed shards of the sources, so pytest-xdist
+    spreads them over workers; the plugin merges the shards into one result, identical to
+    a one-process run. Assign it to a module-level name starting with ``test_``.
+    """
+    import pytest
+
+    if not isinstance(campaign, Campaign):
+        raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
+    if isinstance(shards, bool) or not isinstance(shards, int) or not 1 <= shards <= 1000:
+        raise InvalidArgument(f"shards={shards!r} must be an int between 1 and 1000")
+
+    @pytest.mark.parametrize("mt_shard", range(shards), ids=[f"shard{i}" for i in range(shards)])
+    def test(mt_shard: int) -> None:
+        """Body intentionally empty: the plugin runs the shard around this call."""
+
+    test._metamorphic_campaign = (campaign, shards)
+    test.__name__ = test.__qualname__ = f"test_campaign_{_identifier(campaign.name)}"
+    return test
+
+
+def _identifier(name: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in name).strip("_").lower() or "campaign"
 
 
 def shard_indices(sources: int, shard: int, shards: int) -> range:

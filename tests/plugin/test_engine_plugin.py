@@ -5,7 +5,12 @@ from __future__ import annotations
 import json
 import xml.etree.ElementTree as ET
 
+# Loaded here so in-process pytester runs never re-import numpy/scipy extension modules
+# (they cannot be loaded twice in one process, and pytester unloads what a run imported).
+import numpy  # noqa: F401
 import pytest
+
+import pytest_metamorphic.core.campaign  # noqa: F401
 
 HEADER = """
 from hypothesis import settings, strategies as st
@@ -407,3 +412,75 @@ def test_plain():
     )
     result = pytester.runpytest("-m", "metamorphic")
     result.assert_outcomes(passed=1, deselected=1)
+
+
+CAMPAIGN = """
+import numpy as np
+from pytest_metamorphic import relations
+from pytest_metamorphic.core.campaign import Campaign, campaign_test
+
+def source(rng, index):
+    return tuple(int(x) for x in rng.integers(0, 5, size=int(rng.integers(1, 6))))
+
+def followup(xs, size, rng):
+    return xs + tuple(int(x) for x in rng.integers(0, 5, size=size))
+
+def system(xs):
+    # Bug: more than 6 elements and the first distinct value is lost.
+    values = sorted(set(xs))
+    return values[1:] if len(xs) > 6 else values
+
+test_dedupe = campaign_test(
+    Campaign("dedupe", source, followup, system, relations.subset(), sizes=(1, 3),
+             sources=40, followups=2, seed=3),
+    shards=4,
+)
+"""
+
+
+def test_campaign_tests_are_skipped_without_the_option(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_c=CAMPAIGN)
+    result = pytester.runpytest("-rs")
+    result.assert_outcomes(skipped=4)
+    result.stdout.fnmatch_lines(["*campaign: run with --mt-campaign*"])
+
+
+def _campaign_report(pytester: pytest.Pytester, *args: str) -> dict:
+    result = pytester.runpytest_subprocess("--mt-campaign", *args)
+    result.assert_outcomes(passed=4)
+    result.stdout.fnmatch_lines(
+        ["*= campaign dedupe =*", "campaign 'dedupe', seed 3, 40 sources x 2 sizes*(complete)*"]
+    )
+    folder = pytester.path / "mt-campaigns" / "dedupe"
+    assert (folder / "report.md").exists() and (folder / "categories.png").exists()
+    return json.loads((folder / "report.json").read_text())
+
+
+def test_campaign_under_xdist_equals_single_process(pytester: pytest.Pytester) -> None:
+    pytest.importorskip("xdist")
+    pytester.makepyfile(test_c=CAMPAIGN)
+    single = _campaign_report(pytester)
+    distributed = _campaign_report(pytester, "-n", "2")
+    assert single == distributed
+    assert single["sizes"]["3"]["violations"] > 0
+    assert single["sut_calls"] == 40 * (1 + 2 * 2)
+
+
+def test_interrupted_campaign_resumes(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_c=CAMPAIGN)
+    # Only shards 0 and 1 run: the merged report says it is partial.
+    result = pytester.runpytest("--mt-campaign", "-k", "shard0 or shard1")
+    result.stdout.fnmatch_lines(["*PARTIAL: 20 of 40 sources*"])
+    logs = sorted((pytester.path / "mt-campaigns" / "dedupe").glob("shard-*.jsonl"))
+    assert [p.name for p in logs] == ["shard-0-of-4.jsonl", "shard-1-of-4.jsonl"]
+    before = logs[0].read_text()
+    result = pytester.runpytest("--mt-campaign", "--mt-resume")
+    result.stdout.fnmatch_lines(["*(complete)*"])
+    assert logs[0].read_text() == before  # finished work was read back, not redone
+
+
+def test_resume_without_campaign_is_a_usage_error(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_x="def test_x():\n    pass\n")
+    result = pytester.runpytest("--mt-resume")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--mt-resume only makes sense with --mt-campaign*"])
