@@ -1,0 +1,145 @@
+"""Delta debugging to a proven 1-minimal failing subset.
+
+Hypothesis's shrinker is capped (500 successful shrinks) and works on the choice sequence,
+not on "which injected points matter". Once a failing perturbation is known, ddmin
+(Zeller & Hildebrandt, 2002) removes elements directly, and its last round at granularity
+``n = len(elements)`` is exactly the 1-minimality proof: removing any single remaining
+element makes the failure disappear. The result says whether that proof completed within
+the call budget.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Generic, TypeVar
+
+from pytest_metamorphic.core.errors import InvalidArgument
+
+__all__ = ["MinimizationResult", "ddmin"]
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class MinimizationResult(Generic[T]):
+    """The smallest failing subset found.
+
+    Attributes
+    ----------
+    elements : tuple
+        The failing subset, in the original order.
+    indices : tuple of int
+        Their positions in the input sequence.
+    proven_minimal : bool
+        True when every one-element removal was tried and none still failed.
+    calls : int
+        Calls of the failure test spent (the initial confirmation included).
+    """
+
+    elements: tuple[T, ...]
+    indices: tuple[int, ...]
+    proven_minimal: bool
+    calls: int
+    history: tuple[int, ...] = field(default=(), repr=False)  # subset size after each step
+
+    def __len__(self) -> int:
+        return len(self.elements)
+
+
+class _Budget(Exception):
+    pass
+
+
+def ddmin(
+    elements: Sequence[T],
+    fails: Callable[[Sequence[T]], bool],
+    *,
+    max_calls: int = 1000,
+    check_input: bool = True,
+) -> MinimizationResult[T]:
+    """Reduce ``elements`` to a 1-minimal subset for which ``fails(subset)`` is true.
+
+    Parameters
+    ----------
+    elements : sequence
+        The failing perturbation (e.g. injected points).
+    fails : callable(subset) -> bool
+        Runs the system on the source plus ``subset`` and says whether the relation is
+        still violated. Called with subsets in the original order.
+    max_calls : int
+        Budget of ``fails`` calls. When it runs out the best subset so far is returned
+        with ``proven_minimal=False``.
+    check_input : bool
+        Confirm first that the full sequence fails (one call).
+    """
+    if isinstance(max_calls, bool) or not isinstance(max_calls, int) or max_calls < 1:
+        raise InvalidArgument(f"max_calls={max_calls!r} must be an int >= 1")
+    if not callable(fails):
+        raise InvalidArgument(f"fails={fails!r} must be callable(subset) -> bool")
+    current = list(range(len(elements)))
+    calls = 0
+    cache: dict[tuple[int, ...], bool] = {}
+    history: list[int] = []
+
+    def test(indices: list[int]) -> bool:
+        nonlocal calls
+        key = tuple(indices)
+        if key in cache:
+            return cache[key]
+        if calls >= max_calls:
+            raise _Budget
+        calls += 1
+        result = bool(fails([elements[i] for i in indices]))
+        cache[key] = result
+        return result
+
+    def result(proven: bool) -> MinimizationResult[T]:
+        return MinimizationResult(
+            tuple(elements[i] for i in current), tuple(current), proven, calls, tuple(history)
+        )
+
+    try:
+        if check_input and not test(current):
+            raise InvalidArgument("fails(elements) is False: the full input does not fail")
+        if not current:
+            return result(True)
+        if len(current) == 1:
+            # The only smaller subset is the empty one.
+            return result(not test([]))
+        granularity = 2
+        while len(current) >= 2:
+            chunks = _split(current, granularity)
+            reduced = False
+            for chunk in chunks:
+                if test(chunk):
+                    current, granularity, reduced = chunk, 2, True
+                    break
+            if not reduced:
+                for index in range(len(chunks)):
+                    complement = [i for j, c in enumerate(chunks) if j != index for i in c]
+                    if test(complement):
+                        current, reduced = complement, True
+                        granularity = max(granularity - 1, 2)
+                        break
+            if reduced:
+                history.append(len(current))
+                continue
+            if granularity >= len(current):
+                # Every one-element removal was tested and none fails: 1-minimal.
+                return result(True)
+            granularity = min(2 * granularity, len(current))
+        # One element left: 1-minimal unless the empty perturbation fails too.
+        return result(not test([]))
+    except _Budget:
+        return result(False)
+
+
+def _split(items: list[int], parts: int) -> list[list[int]]:
+    size, extra = divmod(len(items), parts)
+    chunks, start = [], 0
+    for index in range(parts):
+        end = start + size + (1 if index < extra else 0)
+        chunks.append(items[start:end])
+        start = end
+    return [chunk for chunk in chunks if chunk]
