@@ -1,0 +1,249 @@
+"""KITTI object labels (``label_2/*.txt``) and calibration (``calib/*.txt``).
+
+Labels give boxes in the rectified camera-0 frame (x right, y down, z forward; the
+location is the centre of the box's *bottom* face; ``rotation_y`` about camera y).
+:func:`read_kitti_labels` converts them to the LiDAR frame (x forward, y left, z up)
+through the file's own ``R0_rect`` and ``Tr_velo_to_cam`` (full inverse transforms, not
+the usual axis-swap approximation), with the box centre lifted to mid-height.
+
+KITTI classes map onto the project's labels as Apollo's perception groups them (Apollo
+has one VEHICLE type for every motor vehicle):
+
+=======================================  ==============
+KITTI ``type``                           label
+=======================================  ==============
+Car, Van, Truck, Tram                    ``car``
+Pedestrian, Person_sitting               ``pedestrian``
+Cyclist                                  ``cyclist``
+Misc                                     ``unknown``
+DontCare                                 ignored (regions, not objects)
+=======================================  ==============
+
+:func:`read_kitti_objects` keeps everything else a label line says (original type,
+truncation, occlusion, alpha, 2-D box) beside the converted :class:`Box`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.lidar.obstacles import Box, Label
+
+__all__ = [
+    "KITTI_LABELS",
+    "KittiCalibration",
+    "KittiObject",
+    "read_kitti_calibration",
+    "read_kitti_labels",
+    "read_kitti_objects",
+]
+
+KITTI_LABELS: dict[str, Label] = {
+    "Car": "car",
+    "Van": "car",
+    "Truck": "car",
+    "Tram": "car",
+    "Pedestrian": "pedestrian",
+    "Person_sitting": "pedestrian",
+    "Cyclist": "cyclist",
+    "Misc": "unknown",
+}
+
+# Object-benchmark names first, tracking-benchmark aliases second.
+_KEYS = {
+    "P2": ("P2",),
+    "R0_rect": ("R0_rect", "R_rect"),
+    "Tr_velo_to_cam": ("Tr_velo_to_cam", "Tr_velo_cam"),
+}
+MAX_TEXT_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class KittiCalibration:
+    """The calibration a frame's labels need.
+
+    Attributes
+    ----------
+    P2 : (3, 4) float64
+      Left colour camera projection (rectified).
+    R0_rect : (3, 3) float64
+      Rectifying rotation of camera 0.
+    Tr_velo_to_cam : (3, 4) float64
+      LiDAR to camera-0 rigid transform.
+    """
+
+    P2: NDArray[np.float64]
+    R0_rect: NDArray[np.float64]
+    Tr_velo_to_cam: NDArray[np.float64]
+
+    def rect_to_velo(self) -> NDArray[np.float64]:
+        """(4, 4) float64 taking rectified camera coordinates to LiDAR coordinates."""
+        rect = np.eye(4)
+        rect[:3, :3] = self.R0_rect
+        velo_to_cam = np.eye(4)
+        velo_to_cam[:3, :] = self.Tr_velo_to_cam
+        return np.linalg.inv(rect @ velo_to_cam)
+
+
+@dataclass(frozen=True)
+class KittiObject:
+    """One label line: the KITTI record and the box converted to the LiDAR frame."""
+
+    type: str
+    truncated: float
+    occluded: int
+    alpha: float
+    bbox: tuple[float, float, float, float]
+    box: Box
+
+
+def _read_text(path: Path, what: str) -> str:
+    try:
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_TEXT_BYTES + 1)
+    except OSError as error:
+        raise DataError(f"cannot read {what}: {error.strerror or error}", path=path) from None
+    if len(raw) > MAX_TEXT_BYTES:
+        raise DataError(f"{what} is over {MAX_TEXT_BYTES} bytes; not a KITTI text file", path=path)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise DataError(f"{what} is not text (byte {error.start})", path=path) from None
+
+
+def _numbers(parts: list[str], path: Path, where: str) -> list[float]:
+    try:
+        values = [float(part) for part in parts]
+    except ValueError:
+        raise DataError(
+            f"{where}: non-numeric value in {' '.join(parts)[:80]!r}", path=path
+        ) from None
+    if not all(math.isfinite(value) for value in values):
+        raise DataError(f"{where}: non-finite value", path=path)
+    return values
+
+
+def read_kitti_calibration(path: str | os.PathLike[str]) -> KittiCalibration:
+    """Read a KITTI object (or tracking) calibration file.
+
+    Raises
+    ------
+    DataError
+      A required matrix (P2, R0_rect, Tr_velo_to_cam) is missing or malformed.
+    """
+    path = Path(path)
+    entries: dict[str, list[float]] = {}
+    for number, line in enumerate(_read_text(path, "calibration").splitlines(), 1):
+        if not line.strip():
+            continue
+        key, colon, rest = line.partition(":")
+        if not colon:
+            key, _, rest = line.strip().partition(" ")  # tracking files have no colons
+        entries[key.strip()] = _numbers(rest.split(), path, f"line {number} ({key.strip()})")
+    matrices = {}
+    for name, shape in (("P2", (3, 4)), ("R0_rect", (3, 3)), ("Tr_velo_to_cam", (3, 4))):
+        key = next((k for k in _KEYS[name] if k in entries), None)
+        if key is None:
+            raise DataError(
+                f"no {name} matrix (keys present: {sorted(entries) or 'none'}); "
+                "is this a KITTI object calibration file?",
+                path=path,
+            )
+        values = entries[key]
+        if len(values) != shape[0] * shape[1]:
+            raise DataError(
+                f"{key} has {len(values)} numbers, expected {shape[0] * shape[1]}", path=path
+            )
+        matrices[name] = np.array(values, np.float64).reshape(shape)
+    if abs(np.linalg.det(matrices["R0_rect"])) < 1e-6:
+        raise DataError("R0_rect is singular", path=path)
+    if abs(np.linalg.det(matrices["Tr_velo_to_cam"][:, :3])) < 1e-6:
+        raise DataError("Tr_velo_to_cam has a singular rotation", path=path)
+    return KittiCalibration(**matrices)
+
+
+def read_kitti_objects(
+    label_path: str | os.PathLike[str],
+    calibration: str | os.PathLike[str] | KittiCalibration,
+) -> list[KittiObject]:
+    """Every object of a KITTI label file except DontCare, boxes in the LiDAR frame.
+
+    Parameters
+    ----------
+    label_path : path-like
+      15 values per line (ground truth) or 16 (detections, with a score).
+    calibration : path-like or KittiCalibration
+      The frame's ``calib/*.txt``.
+    """
+    label_path = Path(label_path)
+    calib = (
+        calibration
+        if isinstance(calibration, KittiCalibration)
+        else read_kitti_calibration(calibration)
+    )
+    to_velo = calib.rect_to_velo()
+    objects = []
+    for number, line in enumerate(_read_text(label_path, "label file").splitlines(), 1):
+        parts = line.split()
+        if not parts or parts[0] == "DontCare":
+            continue
+        where = f"line {number}"
+        if len(parts) not in (15, 16):
+            raise DataError(f"{where} has {len(parts)} values, expected 15 or 16", path=label_path)
+        kind = parts[0]
+        if kind not in KITTI_LABELS:
+            raise DataError(
+                f"{where}: unknown KITTI type {kind[:40]!r} (known: {sorted(KITTI_LABELS)}, "
+                "DontCare)",
+                path=label_path,
+            )
+        values = _numbers(parts[1:], label_path, where)
+        truncated, occluded, alpha = values[0], values[1], values[2]
+        bbox = tuple(values[3:7])
+        height, width, length = values[7:10]
+        if min(height, width, length) <= 0:
+            raise DataError(f"{where}: box size h={height} w={width} l={length}", path=label_path)
+        box = _to_lidar(values[10:13], (length, width, height), values[13], to_velo)
+        box = Box(
+            box.center,
+            box.size,
+            box.yaw,
+            label=KITTI_LABELS[kind],
+            score=values[14] if len(values) == 15 else None,
+        )
+        objects.append(KittiObject(kind, truncated, int(occluded), alpha, bbox, box))  # type: ignore[arg-type]
+    return objects
+
+
+def read_kitti_labels(
+    label_path: str | os.PathLike[str],
+    calib_path: str | os.PathLike[str] | KittiCalibration,
+) -> list[Box]:
+    """Ground-truth boxes of a KITTI label file in the LiDAR frame (DontCare skipped).
+
+    See the module docstring for the class mapping and the conversion.
+    """
+    return [item.box for item in read_kitti_objects(label_path, calib_path)]
+
+
+def _to_lidar(
+    location: list[float],
+    size: tuple[float, float, float],
+    rotation_y: float,
+    to_velo: NDArray[np.float64],
+) -> Box:
+    length, width, height = size
+    x, y, z = location
+    # The label's location is the bottom face's centre; camera y points down.
+    centre = to_velo @ np.array([x, y - height / 2.0, z, 1.0])
+    # Heading: rotation_y = 0 faces camera +x; the direction is (cos r, 0, -sin r).
+    heading = to_velo[:3, :3] @ np.array([math.cos(rotation_y), 0.0, -math.sin(rotation_y)])
+    yaw = math.atan2(heading[1], heading[0])
+    return Box(tuple(centre[:3]), (length, width, height), yaw)  # type: ignore[arg-type]

@@ -1,0 +1,494 @@
+"""PCD files (Point Cloud Library format v0.7): ``ascii``, ``binary``, ``binary_compressed``.
+
+Reading maps the fields ``x``, ``y``, ``z`` and ``intensity`` onto the cloud's float32
+columns and keeps every other field with its own dtype (``COUNT`` > 1 gives an ``(n, k)``
+field); ``_`` padding fields are skipped. Writing produces files PCL, CloudCompare and
+Open3D open. The header is checked against the file size before anything is allocated,
+so a header that lies about its size gets a :class:`DataError`, not a memory blow-up.
+
+The cloud's ``frame_id`` and ``timestamp`` have no PCD field; the writer keeps them in
+two comment lines (``# frame_id ...``, ``# timestamp ...``) that this reader restores and
+other tools ignore.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
+from pytest_metamorphic.lidar.io import _lzf
+from pytest_metamorphic.lidar.io._common import (
+    ZerosPolicy,
+    check_policies,
+    cloud_from_columns,
+    cloud_from_records,
+    records_from_cloud,
+    replacing,
+)
+
+__all__ = ["PcdHeader", "read_pcd", "read_pcd_header", "write_pcd"]
+
+PcdData = Literal["ascii", "binary", "binary_compressed"]
+
+#: Headers are a few hundred bytes; anything longer without a DATA line is not a PCD.
+MAX_HEADER_BYTES = 64 * 1024
+#: Real PCD records are at most a few kB (a 308-float VFH descriptor is 1232 bytes).
+MAX_POINT_STEP = 1 << 20
+_SIZES = {"F": (4, 8), "U": (1, 2, 4, 8), "I": (1, 2, 4, 8)}
+_KEYWORDS = (
+    "VERSION",
+    "FIELDS",
+    "SIZE",
+    "TYPE",
+    "COUNT",
+    "WIDTH",
+    "HEIGHT",
+    "VIEWPOINT",
+    "POINTS",
+    "DATA",
+)
+_WRITABLE = "f4 f8 u1 u2 u4 u8 i1 i2 i4 i8"
+_FRAME_ID = re.compile(r"#\s*frame_id (.*)")
+_TIMESTAMP = re.compile(r"#\s*timestamp (\S+)\s*")
+
+
+@dataclass(frozen=True)
+class PcdHeader:
+    """What a PCD header declares.
+
+    Attributes
+    ----------
+    fields : tuple of str
+      Field names in file order, ``_`` padding included.
+    sizes, types, counts : tuple of int / str / int
+      Bytes per value, ``F``/``U``/``I``, values per point, one per field.
+    width, height, points : int
+      ``points == width * height``; ``height > 1`` means an organised cloud.
+    data : {"ascii", "binary", "binary_compressed"}
+    data_offset : int
+      Byte offset of the payload.
+    viewpoint : (7,) tuple of float
+      Sensor pose tx ty tz qw qx qy qz (kept, not applied, as PCL does).
+    frame_id, timestamp : str, float or None
+      Restored from this library's comment lines, when present.
+    """
+
+    fields: tuple[str, ...]
+    sizes: tuple[int, ...]
+    types: tuple[str, ...]
+    counts: tuple[int, ...]
+    width: int
+    height: int
+    points: int
+    data: PcdData
+    data_offset: int
+    viewpoint: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    frame_id: str = ""
+    timestamp: float | None = None
+
+    @property
+    def point_step(self) -> int:
+        """Bytes per point in the ``binary`` layout."""
+        return sum(size * count for size, count in zip(self.sizes, self.counts, strict=True))
+
+    def dtype(self) -> np.dtype:
+        """Structured little-endian dtype of one ``binary`` record (padding skipped)."""
+        names, formats, offsets, offset = [], [], [], 0
+        for field, size, kind, count in zip(
+            self.fields, self.sizes, self.types, self.counts, strict=True
+        ):
+            if field != "_":
+                code = f"<{kind.lower()}{size}"
+                names.append(field)
+                formats.append(code if count == 1 else (code, (count,)))
+                offsets.append(offset)
+            offset += size * count
+        return np.dtype(
+            {"names": names, "formats": formats, "offsets": offsets, "itemsize": self.point_step}
+        )
+
+
+def read_pcd_header(path: str | os.PathLike[str]) -> PcdHeader:
+    """Parse and check the header of a PCD file (nothing after it is read)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(MAX_HEADER_BYTES)
+    except OSError as error:
+        raise DataError(f"cannot read PCD file: {error.strerror or error}", path=path) from None
+    return _parse_header(head, path)
+
+
+def read_pcd(
+    path: str | os.PathLike[str],
+    *,
+    nonfinite: NonFinitePolicy = "reject",
+    zeros: ZerosPolicy = "auto",
+) -> PointCloud:
+    """Read a PCD file.
+
+    Parameters
+    ----------
+    path : path-like
+    nonfinite : {"reject", "drop"}
+      Points with NaN/inf x, y, z or intensity (the padding of organised PCL clouds) raise
+      a DataError, or are dropped and counted in ``cloud.dropped_nonfinite``.
+    zeros : {"auto", "drop", "keep"}
+      Points at x = y = z = 0 exactly: dropped (and counted in ``cloud.dropped_zero``) for
+      ``"drop"``, or for ``"auto"`` when the cloud is organised (HEIGHT > 1).
+
+    Returns
+    -------
+    PointCloud
+      Extra fields keep their PCD dtype; ``COUNT`` k > 1 gives an ``(n, k)`` field.
+
+    Raises
+    ------
+    DataError
+      Naming the file and what is wrong: bad header, unsupported type, truncated or
+      oversized payload, corrupt compressed data, missing x/y/z, non-finite points.
+    """
+    check_policies(nonfinite, zeros)
+    header = read_pcd_header(path)
+    name = str(path)
+    size = Path(path).stat().st_size
+    options = {
+        "name": name,
+        "organised": header.height > 1,
+        "nonfinite": nonfinite,
+        "zeros": zeros,
+        "frame_id": header.frame_id,
+        "timestamp": header.timestamp,
+    }
+    if header.data == "binary":
+        return _read_binary(Path(path), header, size, options)
+    if header.data == "binary_compressed":
+        return _read_compressed(Path(path), header, size, options)
+    return _read_ascii(Path(path), header, options)
+
+
+def write_pcd(
+    cloud: PointCloud,
+    path: str | os.PathLike[str],
+    *,
+    data: PcdData = "binary",
+    overwrite: bool = False,
+) -> Path:
+    """Write a cloud as an unorganised PCD file that reads back to an equal cloud.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+      Written as fields x, y, z, intensity (F4), then its extra fields in order, each
+      with its own dtype (bool and float16 fields are refused: PCD has no such type).
+    path : path-like
+    data : {"binary", "binary_compressed", "ascii"}
+      ``binary_compressed`` is PCL's LZF format (compact, slower); ``ascii`` prints
+      every value with enough digits to read back exactly.
+    overwrite : bool
+      Replace an existing file; otherwise an existing ``path`` is an InvalidArgument.
+
+    Returns
+    -------
+    Path
+      Where the file was written (atomically: the file appears complete or not at all).
+    """
+    if data not in ("ascii", "binary", "binary_compressed"):
+        raise InvalidArgument(f"data={data!r} must be 'ascii', 'binary' or 'binary_compressed'")
+    records = records_from_cloud(cloud, allowed=_WRITABLE, fmt="PCD")
+    if any(not re.fullmatch(r"[^\s#]+", key) or key == "_" for key in cloud.fields):
+        bad = next(k for k in cloud.fields if not re.fullmatch(r"[^\s#]+", k) or k == "_")
+        raise InvalidArgument(f"field name {bad!r} cannot be written to a PCD header")
+    if "\n" in cloud.frame_id or "\r" in cloud.frame_id:
+        raise InvalidArgument(f"frame_id {cloud.frame_id!r} has a line break; PCD cannot keep it")
+    header = _header_text(cloud, records.dtype, data).encode("utf-8")
+    with replacing(path, overwrite=overwrite) as temporary, temporary.open("wb") as handle:
+        handle.write(header)
+        if data == "binary":
+            handle.write(records.tobytes())
+        elif data == "binary_compressed":
+            raw = b"".join(
+                np.ascontiguousarray(records[key]).tobytes() for key in records.dtype.names
+            )
+            packed = _lzf.compress(raw)
+            handle.write(np.array([len(packed), len(raw)], "<u4").tobytes())
+            handle.write(packed)
+        else:
+            handle.write(_ascii_body(records).encode("ascii"))
+    return Path(path)
+
+
+# -- header -----------------------------------------------------------------------------
+
+
+def _parse_header(head: bytes, path: Path) -> PcdHeader:
+    values: dict[str, list[str]] = {}
+    frame_id, timestamp = "", None
+    offset = 0
+    while True:
+        end = head.find(b"\n", offset)
+        if end < 0:
+            if len(head) >= MAX_HEADER_BYTES:
+                raise DataError(f"no DATA line in the first {MAX_HEADER_BYTES} bytes", path=path)
+            if offset >= len(head):
+                what = "an empty file" if not head else "no DATA line (truncated header?)"
+                raise DataError(f"not a PCD file: {what}", path=path)
+            end = len(head)  # a last line without its newline
+        try:
+            line = head[offset:end].decode("utf-8").strip()
+        except UnicodeDecodeError:
+            raise DataError(
+                f"not a PCD file: header line at byte {offset} is not text", path=path
+            ) from None
+        offset = end + 1
+        if line.startswith("#"):
+            if match := _FRAME_ID.fullmatch(line):
+                frame_id = match.group(1)
+            elif match := _TIMESTAMP.fullmatch(line):
+                timestamp = _float(match.group(1), "timestamp comment", path)
+            continue
+        if not line:
+            continue
+        keyword, *rest = line.split()
+        if keyword.upper() not in _KEYWORDS:
+            raise DataError(f"not a PCD file: unknown header line {line[:60]!r}", path=path)
+        keyword = keyword.upper()
+        if keyword in values:
+            raise DataError(f"header has two {keyword} lines", path=path)
+        values[keyword] = rest
+        if keyword == "DATA":
+            break
+    return _header_from_values(values, min(offset, len(head)), frame_id, timestamp, path)
+
+
+def _header_from_values(
+    values: dict[str, list[str]], offset: int, frame_id: str, timestamp: float | None, path: Path
+) -> PcdHeader:
+    for required in ("FIELDS", "SIZE", "TYPE", "WIDTH", "HEIGHT"):
+        if required not in values:
+            raise DataError(f"header has no {required} line", path=path)
+    fields = tuple(values["FIELDS"])
+    if not fields:
+        raise DataError("FIELDS line names no fields", path=path)
+    named = [field for field in fields if field != "_"]
+    if len(set(named)) != len(named):
+        raise DataError(f"FIELDS repeats a name: {' '.join(fields)}", path=path)
+    sizes = tuple(_int(v, "SIZE", path) for v in values["SIZE"])
+    types = tuple(v.upper() for v in values["TYPE"])
+    counts = tuple(_int(v, "COUNT", path) for v in values.get("COUNT", ["1"] * len(fields)))
+    for keyword, items in (("SIZE", sizes), ("TYPE", types), ("COUNT", counts)):
+        if len(items) != len(fields):
+            raise DataError(
+                f"{keyword} has {len(items)} entries for {len(fields)} FIELDS", path=path
+            )
+    for field, size, kind, count in zip(fields, sizes, types, counts, strict=True):
+        if kind not in _SIZES:
+            raise DataError(f"field {field!r} has TYPE {kind!r}; expected F, U or I", path=path)
+        if size not in _SIZES[kind]:
+            raise DataError(f"field {field!r} has TYPE {kind} with SIZE {size}", path=path)
+        if count < 1:
+            raise DataError(f"field {field!r} has COUNT {count}", path=path)
+    step = sum(size * count for size, count in zip(sizes, counts, strict=True))
+    if step > MAX_POINT_STEP:
+        raise DataError(
+            f"fields declare {step} bytes per point (limit {MAX_POINT_STEP})", path=path
+        )
+    width = _single_int(values["WIDTH"], "WIDTH", path)
+    height = _single_int(values["HEIGHT"], "HEIGHT", path)
+    points = width * height
+    if "POINTS" in values and _single_int(values["POINTS"], "POINTS", path) != points:
+        raise DataError(
+            f"POINTS {values['POINTS'][0]} differs from WIDTH x HEIGHT = {points}", path=path
+        )
+    viewpoint: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    if "VIEWPOINT" in values:
+        viewpoint = tuple(_float(v, "VIEWPOINT", path) for v in values["VIEWPOINT"])
+        if len(viewpoint) != 7 or not all(map(math.isfinite, viewpoint)):
+            raise DataError("VIEWPOINT needs 7 finite numbers", path=path)
+    data = " ".join(values["DATA"]).lower()
+    if data not in ("ascii", "binary", "binary_compressed"):
+        raise DataError(f"DATA {data!r} is not ascii, binary or binary_compressed", path=path)
+    return PcdHeader(
+        fields,
+        sizes,
+        types,
+        counts,
+        width,
+        height,
+        points,
+        data,
+        offset,  # type: ignore[arg-type]
+        viewpoint,
+        frame_id,
+        timestamp,
+    )
+
+
+def _int(text: str, keyword: str, path: Path) -> int:
+    if not text.isdigit():
+        raise DataError(f"{keyword} value {text[:40]!r} is not a non-negative integer", path=path)
+    return int(text)
+
+
+def _single_int(items: list[str], keyword: str, path: Path) -> int:
+    if len(items) != 1:
+        raise DataError(f"{keyword} needs one integer, got {' '.join(items)[:60]!r}", path=path)
+    return _int(items[0], keyword, path)
+
+
+def _float(text: str, keyword: str, path: Path) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise DataError(f"{keyword} value {text[:40]!r} is not a number", path=path) from None
+
+
+def _header_text(cloud: PointCloud, dtype: np.dtype, data: str) -> str:
+    names, sizes, types, counts = [], [], [], []
+    for key in dtype.names:
+        base, shape = dtype[key].base, dtype[key].shape
+        names.append(key)
+        sizes.append(str(base.itemsize))
+        types.append(base.kind.upper())
+        counts.append(str(shape[0] if shape else 1))
+    lines = ["# .PCD v0.7 - Point Cloud Data file format"]
+    if cloud.frame_id:
+        lines.append(f"# frame_id {cloud.frame_id}")
+    if cloud.timestamp is not None:
+        lines.append(f"# timestamp {cloud.timestamp!r}")
+    lines += [
+        "VERSION 0.7",
+        f"FIELDS {' '.join(names)}",
+        f"SIZE {' '.join(sizes)}",
+        f"TYPE {' '.join(types)}",
+        f"COUNT {' '.join(counts)}",
+        f"WIDTH {len(cloud)}",
+        "HEIGHT 1",
+        "VIEWPOINT 0 0 0 1 0 0 0",
+        f"POINTS {len(cloud)}",
+        f"DATA {data}",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# -- payloads ---------------------------------------------------------------------------
+
+
+def _need(available: int, needed: int, what: str, path: Path) -> None:
+    if needed > available:
+        raise DataError(
+            f"{what} needs {needed} bytes but only {available} follow the header "
+            "(truncated file, or a header that overstates its size)",
+            path=path,
+        )
+
+
+def _read_binary(path: Path, header: PcdHeader, size: int, options: dict) -> PointCloud:
+    available = size - header.data_offset
+    _need(
+        available,
+        header.points * header.point_step,
+        f"{header.points} points of {header.point_step} bytes",
+        path,
+    )
+    dtype = header.dtype()
+    records = np.fromfile(path, dtype=dtype, count=header.points, offset=header.data_offset)
+    if len(records) != header.points:  # the file shrank since stat()
+        raise DataError(f"expected {header.points} points, read {len(records)}", path=path)
+    return cloud_from_records(records, **options)
+
+
+def _read_compressed(path: Path, header: PcdHeader, size: int, options: dict) -> PointCloud:
+    available = size - header.data_offset
+    _need(available, 8, "the compressed-size words", path)
+    with path.open("rb") as handle:
+        handle.seek(header.data_offset)
+        compressed, uncompressed = (int(v) for v in np.frombuffer(handle.read(8), "<u4"))
+        expected = header.points * header.point_step
+        if uncompressed != expected:
+            raise DataError(
+                f"binary_compressed payload declares {uncompressed} bytes but {header.points} "
+                f"points of {header.point_step} bytes need {expected}",
+                path=path,
+            )
+        _need(available - 8, compressed, "the compressed payload", path)
+        if uncompressed > _lzf.MAX_RATIO * compressed + 64:
+            raise DataError(
+                f"{compressed} LZF bytes cannot expand to the declared {uncompressed}", path=path
+            )
+        packed = handle.read(compressed)
+    try:
+        raw = _lzf.decompress(packed, uncompressed)
+    except ValueError as error:
+        raise DataError(f"corrupt binary_compressed payload: {error}", path=path) from None
+    columns: dict[str, np.ndarray] = {}
+    offset, n = 0, header.points
+    for field, width, kind, count in zip(
+        header.fields, header.sizes, header.types, header.counts, strict=True
+    ):
+        block = n * width * count
+        if field != "_":
+            values = np.frombuffer(raw, f"<{kind.lower()}{width}", n * count, offset)
+            columns[field] = values if count == 1 else values.reshape(n, count)
+        offset += block
+    return cloud_from_columns(columns, **options)
+
+
+def _read_ascii(path: Path, header: PcdHeader, options: dict) -> PointCloud:
+    per_point = sum(header.counts)
+    size = path.stat().st_size - header.data_offset
+    # Every value takes at least one character and one separator: bound before parsing.
+    _need(size + 1, 2 * header.points * per_point, f"{header.points} ascii points", path)
+    with path.open("rb") as handle:
+        handle.seek(header.data_offset)
+        try:
+            tokens = handle.read().decode("ascii").split()
+        except UnicodeDecodeError:
+            raise DataError("ascii payload holds non-ASCII bytes", path=path) from None
+    if len(tokens) != header.points * per_point:
+        raise DataError(
+            f"ascii payload has {len(tokens)} values; {header.points} points x {per_point} "
+            f"values need {header.points * per_point}",
+            path=path,
+        )
+    columns: dict[str, np.ndarray] = {}
+    start = 0
+    for field, width, kind, count in zip(
+        header.fields, header.sizes, header.types, header.counts, strict=True
+    ):
+        if field != "_":
+            parts = [tokens[start + k :: per_point] for k in range(count)]
+            text = np.array(parts).T if count > 1 else np.array(parts[0])
+            try:
+                with np.errstate(over="ignore", invalid="ignore"):
+                    if kind == "F":
+                        values = text.astype(np.float64).astype(f"<f{width}")
+                    else:
+                        values = text.astype(f"<{kind.lower()}{width}")
+            except (ValueError, OverflowError) as error:
+                raise DataError(
+                    f"field {field!r} has a value that is not a {kind}{width}: {error}", path=path
+                ) from None
+            columns[field] = values.reshape(header.points, count) if count > 1 else values
+        start += count
+    return cloud_from_columns(columns, **options)
+
+
+def _ascii_body(records: np.ndarray) -> str:
+    columns = []
+    for key in records.dtype.names:
+        values = records[key].reshape(len(records), -1)
+        kind, size = values.dtype.kind, values.dtype.itemsize
+        # 9 / 17 significant digits read back to the same float32 / float64.
+        fmt = ("%.9g" if size == 4 else "%.17g") if kind == "f" else "%d"
+        columns.append([[fmt % v for v in row] for row in values.tolist()])
+    lines = (" ".join(v for column in row for v in column) for row in zip(*columns, strict=True))
+    return "".join(line + "\n" for line in lines)
