@@ -1,0 +1,24 @@
+"""The reference LiDAR obstacle pipeline (a system under test without learned weights).
+
+``ReferencePerception()(cloud, roi) -> list[Box]``: HD-map ROI filter, ground removal,
+grid segmentation, Apollo's MinBox builder, rule-based classes. Faulty variants for
+mutation testing live in :mod:`.mutants`.
+"""
+
+from __future__ import annotations
+
+from pytest_metamorphic.lidar.perception.minbox import MinBox, min_box, min_boxes
+from pytest_metamorphic.lidar.perception.pipeline import (
+    PerceptionParams,
+    ReferencePerception,
+    Stages,
+)
+
+__all__ = [
+    "MinBox",
+    "PerceptionParams",
+    "ReferencePerception",
+    "Stages",
+    "min_box",
+    "min_boxes",
+]

@@ -1,0 +1,100 @@
+"""Ground removal on a coarse grid: the local ground height is the lowest point nearby.
+
+Each point's ground height is the lowest z among the points in the ``window`` x
+``window`` block of ``cell_size`` cells around its own cell (a minimum filter over the
+per-cell minima). A point is ground when it lies less than ``tolerance`` above that
+height. Taking the minimum over a neighbourhood, not the point's own cell, keeps the
+roof of a car from becoming "ground" in cells where the car hides the road; the price
+is that on a slope the estimate runs low by about ``slope * cell_size * window / 2``.
+
+Points below ``floor_z`` (multipath reflections that appear under the road) are ignored
+when estimating the ground, so one bad return cannot lower the ground of a whole block.
+
+The grid is anchored at the sensor origin (cell ``i`` covers ``[i, i + 1) * cell_size``),
+so a point's cell never depends on which other points are in the frame.
+Everything is a function of the *set* of points: order and repeats do not matter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import minimum_filter
+
+from pytest_metamorphic.core.errors import InvalidArgument
+
+__all__ = ["GroundParams", "ground_heights"]
+
+
+@dataclass(frozen=True)
+class GroundParams:
+    """Parameters of :func:`ground_heights` (defaults suit a Velodyne HDL-64E on a car).
+
+    Attributes
+    ----------
+    cell_size : float
+        Grid cell edge in metres.
+    window : int
+        Odd number of cells per side of the neighbourhood whose lowest point is the
+        ground height (7 cells of 1 m: ground within 3 m is enough).
+    tolerance : float
+        Points less than this many metres above the ground height are ground.
+    floor_z : float
+        Points lower than this (sensor frame, metres) never define the ground. KITTI's
+        sensor is 1.73 m above the road, so -3.5 m leaves room for a 1.7 m dip.
+    """
+
+    cell_size: float = 1.0
+    window: int = 7
+    tolerance: float = 0.25
+    floor_z: float = -3.5
+
+    def __post_init__(self) -> None:
+        if not self.cell_size > 0:
+            raise InvalidArgument(f"cell_size={self.cell_size!r} must be > 0")
+        if not isinstance(self.window, int) or self.window < 1 or self.window % 2 == 0:
+            raise InvalidArgument(f"window={self.window!r} must be an odd int >= 1")
+        if not self.tolerance >= 0:
+            raise InvalidArgument(f"tolerance={self.tolerance!r} must be >= 0")
+
+
+def ground_heights(
+    xyz: NDArray[np.float32], params: GroundParams = GroundParams()
+) -> NDArray[np.float32]:
+    """The local ground height under every point.
+
+    Parameters
+    ----------
+    xyz : (n, >=3) float32
+        Points in the sensor frame (x forward, y left, z up), metres.
+    params : GroundParams
+
+    Returns
+    -------
+    (n,) float32
+        Ground z below each point; ``+inf`` where no point at or above ``floor_z`` lies
+        within the window (then nothing there counts as ground). A point is ground when
+        ``z < height + params.tolerance``.
+    """
+    n = len(xyz)
+    if n == 0:
+        return np.empty(0, dtype=np.float32)
+    cells = np.floor(xyz[:, :2] * np.float32(1.0 / params.cell_size)).astype(np.int64)
+    origin = cells.min(axis=0)
+    cells -= origin
+    shape = cells.max(axis=0) + 1
+    flat = cells[:, 0] * shape[1] + cells[:, 1]
+    z = xyz[:, 2]
+    usable = z >= params.floor_z
+    lowest = np.full(int(shape[0] * shape[1]), np.inf, dtype=np.float32)
+    np.minimum.at(lowest, flat[usable], z[usable])
+    # Outside the grid there are no points: padding with +inf changes no minimum.
+    lowest = minimum_filter(
+        lowest.reshape(int(shape[0]), int(shape[1])),
+        size=params.window,
+        mode="constant",
+        cval=np.inf,
+    )
+    return lowest.reshape(-1)[flat]
