@@ -70,7 +70,7 @@ def top5_search(search: Search) -> list[int]:
 
 words = st.sampled_from(VOCABULARY)
 documents = st.lists(words, min_size=1, max_size=8).map(" ".join)
-searches = st.builds(Search, corpus=st.lists(documents, min_size=1, max_size=40).map(tuple),
+searches = st.builds(Search, corpus=st.lists(documents, min_size=8, max_size=40).map(tuple),
                      query=words)  # fmt: skip
 
 
