@@ -16,7 +16,7 @@ import contextlib
 import os
 import shutil
 import uuid
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Literal
 
@@ -32,6 +32,7 @@ __all__ = [
     "cloud_from_records",
     "records_from_cloud",
     "replacing",
+    "require_xyz",
     "wrap_errors",
 ]
 
@@ -48,6 +49,15 @@ def check_policies(nonfinite: object, zeros: object) -> None:
         raise InvalidArgument(f"nonfinite={nonfinite!r} must be 'reject' or 'drop'")
     if zeros not in ("auto", "drop", "keep"):
         raise InvalidArgument(f"zeros={zeros!r} must be 'auto', 'drop' or 'keep'")
+
+
+def require_xyz(names: Iterable[str], name: str) -> None:
+    """Raise DataError unless the field names include x, y and z."""
+    names = list(names)
+    missing = [axis for axis in "xyz" if axis not in names]
+    if missing:
+        shown = sorted(set(names) - {"_"})
+        raise DataError(f"no {'/'.join(missing)} field; the fields are {shown}", path=name)
 
 
 def cloud_from_columns(
@@ -77,11 +87,7 @@ def cloud_from_columns(
       x, y, z, intensity already assembled (a zero-copy view); the coordinate columns
       are then not read from ``columns``.
     """
-    missing = [axis for axis in "xyz" if axis not in columns]
-    if missing:
-        raise DataError(
-            f"no {'/'.join(missing)} field; the fields are {sorted(columns)}", path=name
-        )
+    require_xyz(columns, name)
     for column in COLUMNS:
         if column in columns and columns[column].ndim != 1:
             raise DataError(

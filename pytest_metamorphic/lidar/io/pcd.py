@@ -32,6 +32,7 @@ from pytest_metamorphic.lidar.io._common import (
     cloud_from_records,
     records_from_cloud,
     replacing,
+    require_xyz,
 )
 
 __all__ = ["PcdHeader", "read_pcd", "read_pcd_header", "write_pcd"]
@@ -159,6 +160,7 @@ def read_pcd(
     check_policies(nonfinite, zeros)
     header = read_pcd_header(path)
     name = str(path)
+    require_xyz(header.fields, name)  # before reading a payload that cannot be used
     size = Path(path).stat().st_size
     options = {
         "name": name,
@@ -485,7 +487,7 @@ def _read_ascii(path: Path, header: PcdHeader, options: dict) -> PointCloud:
 def _ascii_body(records: np.ndarray) -> str:
     columns = []
     for key in records.dtype.names:
-        values = records[key].reshape(len(records), -1)
+        values = records[key].reshape(len(records), int(np.prod(records.dtype[key].shape)))
         kind, size = values.dtype.kind, values.dtype.itemsize
         # 9 / 17 significant digits read back to the same float32 / float64.
         fmt = ("%.9g" if size == 4 else "%.17g") if kind == "f" else "%d"
