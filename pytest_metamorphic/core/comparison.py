@@ -36,6 +36,14 @@ def deep_equal(a: Any, b: Any) -> bool:
 def first_difference(a: Any, b: Any, path: str = "output") -> str | None:
     """Describe the first place where ``a`` and ``b`` differ, or None when they are equal."""
     where = path
+    if type(a) is type(b) and isinstance(a, (list, tuple, dict)):
+        # Fast path: C-level equality. Only when it says "different" (or cannot decide,
+        # e.g. arrays inside) do we walk the structure to explain, NaN-aware.
+        try:
+            if a == b:
+                return None
+        except Exception:
+            pass
     if _is_array(a) or _is_array(b):
         return _array_difference(a, b, where)
     equals = getattr(a, "equals", None)
