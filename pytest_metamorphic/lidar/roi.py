@@ -682,6 +682,48 @@ class ROI:
             interior.setflags(write=False)
         return interior
 
+    def cell_origins(
+        self,
+        which: Literal["free", "interior"],
+        *,
+        margin_cells: int = 1,
+        max_range: float | None = None,
+    ) -> NDArray[np.float64]:
+        """Lower-left corners of the free or interior cells, for sampling points in them.
+
+        Parameters
+        ----------
+        which : {"free", "interior"}
+          Cells of :meth:`free_cells` or :meth:`interior_cells`.
+        margin_cells : int
+        max_range : float, optional
+          Keep only cells that reach within this distance of the sensor (the origin).
+
+        Returns
+        -------
+        (k, 2) float64
+          In row-major cell order; cached per arguments, read-only.
+        """
+        if which not in ("free", "interior"):
+            raise InvalidArgument(f"which={which!r} must be 'free' or 'interior'")
+        limit = None if max_range is None else _positive_float(max_range, "max_range")
+        key = ("origins", which, margin_cells, limit)
+        origins = self._cache.get(key)
+        if origins is None:
+            if which == "free":
+                cells = self.free_cells(margin_cells=margin_cells)
+            else:
+                cells = self.interior_cells(margin_cells=margin_cells)
+            ix, iy = np.nonzero(cells)
+            origins = self.cell_origin(ix, iy)
+            if limit is not None:
+                # Closest point of each cell to the origin.
+                nearest = np.clip(0.0, origins, origins + self.cell_size)
+                origins = origins[(nearest**2).sum(axis=1) <= limit**2]
+            origins = self._cache[key] = np.ascontiguousarray(origins)
+            origins.setflags(write=False)
+        return origins
+
     # -- value semantics -------------------------------------------------------------------
 
     def equals(self, other: object) -> bool:
