@@ -72,9 +72,11 @@ class ClassifierParams:
     """The rules of :func:`classify`: per class, a tuple of alternative rules."""
 
     car: tuple[ClassRule, ...] = (
-        ClassRule(length=(2.2, 6.5), width=(0.0, 2.8), top=(0.9, 2.6)),
-        # Seen from behind or in front: the car's width becomes the box length.
-        ClassRule(length=(1.3, 2.2), width=(0.8, 2.2), top=(0.9, 2.0)),
+        # Side or corner view. Thinner than 0.3 m is a wall or fence; vans reach 2.3 m.
+        ClassRule(length=(2.2, 6.5), width=(0.3, 2.8), top=(0.9, 2.3)),
+        # Seen from behind or in front: the car's width becomes the box length, the
+        # box is shallow, and the points span less height than a standing person.
+        ClassRule(length=(1.3, 2.2), width=(0.3, 2.2), top=(0.9, 2.0), height=(0.3, 1.3)),
     )
     cyclist: tuple[ClassRule, ...] = (
         ClassRule(length=(1.2, 2.2), width=(0.15, 0.8), top=(1.2, 2.1), height=(0.8, 2.1)),

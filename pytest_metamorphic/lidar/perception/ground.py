@@ -1,11 +1,17 @@
-"""Ground removal on a coarse grid: the local ground height is the lowest point nearby.
+"""Ground removal on a coarse grid: the ground is the lowest point nearby, allowing a slope.
 
-Each point's ground height is the lowest z among the points in the ``window`` x
-``window`` block of ``cell_size`` cells around its own cell (a minimum filter over the
-per-cell minima). A point is ground when it lies less than ``tolerance`` above that
-height. Taking the minimum over a neighbourhood, not the point's own cell, keeps the
-roof of a car from becoming "ground" in cells where the car hides the road; the price
-is that on a slope the estimate runs low by about ``slope * cell_size * window / 2``.
+The ground height of a cell is the lowest of ``z_min(c') + max_slope * d(c, c')`` over
+the cells ``c'`` of the ``window`` x ``window`` block around it, where ``z_min`` is a
+cell's lowest point and ``d`` the distance between cell centres (a grey erosion with a
+cone-shaped structuring element). A point is ground when it lies less than
+``tolerance`` above its cell's ground height.
+
+Looking at neighbours keeps the roof of a car from becoming "ground" in cells where the
+car hides the road: the road next to it, plus the slope allowance, is lower. Allowing
+``max_slope`` keeps sloped road (up to that gradient) ground all the way instead of
+only near its lowest point; steeper terrain (embankments, walls) is left as obstacles.
+The price: an object on flat ground loses its lowest ``max_slope * cell_size +
+tolerance`` (0.4 m by default) to the ground, where the road one cell away sets the height.
 
 Points below ``floor_z`` (multipath reflections that appear under the road) are ignored
 when estimating the ground, so one bad return cannot lower the ground of a whole block.
@@ -21,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import minimum_filter
+from scipy.ndimage import grey_erosion
 
 from pytest_metamorphic.core.errors import InvalidArgument
 
@@ -37,8 +43,11 @@ class GroundParams:
     cell_size : float
         Grid cell edge in metres.
     window : int
-        Odd number of cells per side of the neighbourhood whose lowest point is the
-        ground height (7 cells of 1 m: ground within 3 m is enough).
+        Odd number of cells per side of the neighbourhood that can lower a cell's
+        ground height (7 cells of 1 m: road within 3 m of a car is enough).
+    max_slope : float
+        Steepest ground gradient (rise over run) followed without leaving obstacles;
+        0.15 covers steep roads and ramps.
     tolerance : float
         Points less than this many metres above the ground height are ground.
     floor_z : float
@@ -48,6 +57,7 @@ class GroundParams:
 
     cell_size: float = 1.0
     window: int = 7
+    max_slope: float = 0.15
     tolerance: float = 0.25
     floor_z: float = -3.5
 
@@ -56,6 +66,8 @@ class GroundParams:
             raise InvalidArgument(f"cell_size={self.cell_size!r} must be > 0")
         if not isinstance(self.window, int) or self.window < 1 or self.window % 2 == 0:
             raise InvalidArgument(f"window={self.window!r} must be an odd int >= 1")
+        if not self.max_slope >= 0:
+            raise InvalidArgument(f"max_slope={self.max_slope!r} must be >= 0")
         if not self.tolerance >= 0:
             raise InvalidArgument(f"tolerance={self.tolerance!r} must be >= 0")
 
@@ -91,10 +103,17 @@ def ground_heights(
     lowest = np.full(int(shape[0] * shape[1]), np.inf, dtype=np.float32)
     np.minimum.at(lowest, flat[usable], z[usable])
     # Outside the grid there are no points: padding with +inf changes no minimum.
-    lowest = minimum_filter(
+    ground = grey_erosion(
         lowest.reshape(int(shape[0]), int(shape[1])),
-        size=params.window,
+        structure=_cone(params),
         mode="constant",
         cval=np.inf,
     )
-    return lowest.reshape(-1)[flat]
+    return ground.reshape(-1)[flat]
+
+
+def _cone(params: GroundParams) -> NDArray[np.float32]:
+    """Structuring element: minus the allowed rise from each neighbour to the centre."""
+    offsets = np.arange(params.window) - params.window // 2
+    distance = np.hypot(offsets[:, None], offsets[None, :]) * params.cell_size
+    return (-params.max_slope * distance).astype(np.float32)
