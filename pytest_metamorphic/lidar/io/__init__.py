@@ -100,7 +100,7 @@ def detect_format(path: str | os.PathLike[str]) -> CloudFormat:
         return suffix[1:]  # type: ignore[return-value]
     try:
         with path.open("rb") as handle:
-            head = handle.read(64)
+            head = handle.read(1024)
     except OSError as error:
         raise DataError(f"cannot read: {error.strerror or error}", path=path) from None
     if head.startswith((b"#ROSBAG", b"\x89MCAP")) or head.startswith(b"SQLite format 3"):
@@ -109,8 +109,10 @@ def detect_format(path: str | os.PathLike[str]) -> CloudFormat:
             "bag reader can open it",
             path=path,
         )
-    first = head.lstrip().split(maxsplit=1)[:1]
-    if head.startswith(b"#") or first in ([b"VERSION"], [b"FIELDS"]):
+    # A PCD header: comment lines, then VERSION or FIELDS.
+    lines = (line.strip() for line in head.splitlines())
+    first = next((line for line in lines if line and not line.startswith(b"#")), b"")
+    if first.split(maxsplit=1)[:1] in ([b"VERSION"], [b"FIELDS"]):
         return "pcd"
     raise DataError(
         "unknown point-cloud format: expected .bin, .pcd, .bag, .db3, .mcap or a ROS 2 bag folder",
