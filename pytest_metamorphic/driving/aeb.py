@@ -1,0 +1,142 @@
+"""A reference AEB controller with the MATLAB example's staging, and the 3.6 m-lane mutant.
+
+Staging (MATLAB/Simulink "Autonomous Emergency Braking with Sensor Fusion" example):
+
+* time to collision ``TTC = headway / closing speed`` to the most important object (MIO);
+* forward collision warning when ``TTC < v / 4.0 + 1.2 s`` (deceleration 4 m/s^2 assumed
+  for the driver plus 1.2 s reaction time);
+* partial braking 1 / partial braking 2 / full braking at 3.8 / 5.3 / 9.8 m/s^2 when
+  ``TTC`` drops below the stopping time of that stage, ``v / a + 0.08 s``;
+* once braking, the stage only escalates until the car stands still.
+
+Most important object: the closest actor ahead whose centre lies in the car's corridor
+(and, when it stands still, only if it is in the car's swept path, so parked cars beside
+the lane are ignored). The reference controller takes the corridor from the map: the car's
+real lane at its position (``Observation.lane_right/lane_left``). MATLAB's example, when it
+has no lane detections, assumes a 3.6 m lane centred on the car; on a 10 m road that
+ignores a pedestrian until it is 1.8 m from the car's path — the fault Iqbal found.
+:func:`mutant_fixed_lane` is exactly that controller.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.driving.kinematics import BrakeCommand, Observation, Track, is_relevant
+
+__all__ = ["STAGES", "AEBController", "mutant_fixed_lane", "reference_controller"]
+
+#: Stage names, in escalation order.
+STAGES = ("off", "FCW", "PB1", "PB2", "FB")
+
+
+@dataclass
+class AEBController:
+    """The MATLAB-style AEB state machine.
+
+    Parameters
+    ----------
+    lane_width : float or None
+        None (reference): the MIO corridor is the car's real lane from the map. A number:
+        a corridor of that width centred on the car's path, whatever the road is like
+        (3.6 is the MATLAB example's default and the mutant).
+    fcw_deceleration, fcw_reaction_time : float
+        FCW time = ``v / fcw_deceleration + fcw_reaction_time``.
+    pb1_deceleration, pb2_deceleration, fb_deceleration : float
+        m/s^2 of the three braking stages.
+    time_margin : float
+        Added to each stage's stopping time ``v / a``.
+    """
+
+    lane_width: float | None = None
+    fcw_deceleration: float = 4.0
+    fcw_reaction_time: float = 1.2
+    pb1_deceleration: float = 3.8
+    pb2_deceleration: float = 5.3
+    fb_deceleration: float = 9.8
+    time_margin: float = 0.08
+    stage: str = field(default="off", init=False)
+    ttc: float = field(default=math.inf, init=False)
+    mio: Track | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        if self.lane_width is not None and not (
+            isinstance(self.lane_width, (int, float))
+            and math.isfinite(self.lane_width)
+            and self.lane_width > 0
+        ):
+            raise InvalidArgument(f"lane_width={self.lane_width!r} must be None or > 0")
+        for name in ("fcw_deceleration", "pb1_deceleration", "pb2_deceleration", "fb_deceleration"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InvalidArgument(f"{name}={value!r} must be a positive number")
+
+    def reset(self) -> None:
+        """Forget the latched stage (called by the simulator before each run)."""
+        self.stage = "off"
+        self.ttc = math.inf
+        self.mio = None
+
+    # -- object selection --------------------------------------------------------------
+    def in_corridor(self, track: Track, observation: Observation) -> bool:
+        """Whether an actor is a braking candidate (see the module docstring)."""
+        if self.lane_width is None:
+            return is_relevant(track, observation)
+        if track.moving and abs(track.d) <= self.lane_width / 2:
+            return True
+        return abs(track.d) < (observation.ego_width + track.width) / 2
+
+    def most_important_object(self, observation: Observation) -> Track | None:
+        """The closest candidate ahead of the bumper, or None."""
+        ahead = [
+            track
+            for track in observation.tracks
+            if track.headway > 0 and self.in_corridor(track, observation)
+        ]
+        return min(ahead, key=lambda track: track.headway, default=None)
+
+    # -- staging ------------------------------------------------------------------------
+    def _stage_for(self, ttc: float, speed: float) -> str:
+        stopping = {
+            "FB": speed / self.fb_deceleration + self.time_margin,
+            "PB2": speed / self.pb2_deceleration + self.time_margin,
+            "PB1": speed / self.pb1_deceleration + self.time_margin,
+        }
+        for stage in ("FB", "PB2", "PB1"):
+            if ttc < stopping[stage]:
+                return stage
+        if ttc < speed / self.fcw_deceleration + self.fcw_reaction_time:
+            return "FCW"
+        return "off"
+
+    def __call__(self, observation: Observation) -> BrakeCommand:
+        speed = observation.ego_speed
+        self.mio = self.most_important_object(observation)
+        self.ttc = math.inf
+        if self.mio is not None:
+            closing = speed - self.mio.vs
+            if closing > 0:
+                self.ttc = self.mio.headway / closing
+        wanted = self._stage_for(self.ttc, speed)
+        # Braking stages latch (escalate only; the car is held once stopped); a warning
+        # alone may come and go.
+        if self.stage in ("off", "FCW") or STAGES.index(wanted) > STAGES.index(self.stage):
+            self.stage = wanted
+        deceleration = {
+            "PB1": self.pb1_deceleration,
+            "PB2": self.pb2_deceleration,
+            "FB": self.fb_deceleration,
+        }.get(self.stage, 0.0)
+        return BrakeCommand(deceleration, self.stage)
+
+
+def reference_controller() -> AEBController:
+    """The reference AEB: MATLAB staging, MIO corridor = the car's real lane."""
+    return AEBController(lane_width=None)
+
+
+def mutant_fixed_lane(lane_width: float = 3.6) -> AEBController:
+    """The faulty AEB Iqbal found: the MIO corridor assumes a ``lane_width`` m lane."""
+    return AEBController(lane_width=lane_width)

@@ -1,0 +1,213 @@
+"""Metamorphic relations for AEB systems under the speed follow-up (Iqbal's MR).
+
+The follow-up changes the car's speed and re-synchronises the pedestrian
+(:meth:`Scenario.with_ego_speed`, drawn by
+:func:`pytest_metamorphic.strategies.driving.ego_speed_changes`). The system under test
+returns a :class:`~pytest_metamorphic.driving.kinematics.SimulationResult` for each
+scenario. Relations:
+
+* :func:`avoided_stays_avoided` -- a collision avoided in the source stays avoided in the
+  follow-up, unless the follow-up's collision was physically unavoidable (at a higher
+  speed the same warning time may simply not be enough to stop; see
+  :func:`~pytest_metamorphic.driving.kinematics.physically_avoidable`);
+* :func:`impact_speed_monotone` -- approaching more slowly never raises the impact speed
+  (an avoided collision counts as 0 km/h).
+
+:func:`speed_relation` bundles the follow-up and both checks as a ``MetamorphicRelation``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.driving.kinematics import (
+    Avoidability,
+    Sensor,
+    SimulationResult,
+    physically_avoidable,
+)
+
+__all__ = [
+    "AvoidedStaysAvoided",
+    "ImpactSpeedMonotone",
+    "avoided_stays_avoided",
+    "impact_speed_monotone",
+    "speed_relation",
+]
+
+
+def _result(value: Any, which: str, relation: str) -> SimulationResult:
+    if not isinstance(value, SimulationResult):
+        raise InvalidArgument(
+            f"{relation} needs the system under test to return a SimulationResult "
+            f"(from pytest_metamorphic.driving.kinematics.simulate); the {which} output is "
+            f"{type(value).__name__}"
+        )
+    return value
+
+
+class AvoidedStaysAvoided(Relation):
+    """A collision avoided in the source stays avoided in the follow-up.
+
+    Parameters
+    ----------
+    excuse_unavoidable : bool
+        Do not blame the system for a follow-up collision that no braking could have
+        avoided (:func:`physically_avoidable` with ``slack``). With False the relation is
+        Iqbal's literal MR, which a perfect AEB also violates at high enough speeds.
+    slack : float
+        Seconds of grace after the pedestrian becomes relevant (see
+        :func:`physically_avoidable`).
+    sensor : Sensor, optional
+        The sensor model the system under test used (for the relevance of the pedestrian).
+    """
+
+    def __init__(
+        self, *, excuse_unavoidable: bool = True, slack: float = 0.1, sensor: Sensor | None = None
+    ) -> None:
+        if not isinstance(excuse_unavoidable, bool):
+            raise InvalidArgument(f"excuse_unavoidable={excuse_unavoidable!r} must be a bool")
+        if not (isinstance(slack, (int, float)) and math.isfinite(slack) and slack >= 0):
+            raise InvalidArgument(f"slack={slack!r} must be a number >= 0")
+        if sensor is not None and not isinstance(sensor, Sensor):
+            raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
+        self.excuse_unavoidable = excuse_unavoidable
+        self.slack = float(slack)
+        self.sensor = sensor
+        self.name = "avoided collision stays avoided" + (
+            " (when physically avoidable)" if excuse_unavoidable else ""
+        )
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        source = _result(source_output, "source", self.name)
+        followup = _result(followup_output, "follow-up", self.name)
+        details: dict[str, Any] = {
+            "source_speed_kmh": source.scenario.ego_speed_kmh,
+            "followup_speed_kmh": followup.scenario.ego_speed_kmh,
+            "source_collided": source.collided,
+            "followup_collided": followup.collided,
+        }
+        if source.collided or followup.avoided:
+            return Verdict(True, self.name, details=details)
+        assert followup.collision is not None
+        details["location"] = followup.collision.location
+        details["impact_speed_kmh"] = followup.collision.impact_speed_kmh
+        avoidability: Avoidability | None = None
+        if self.excuse_unavoidable:
+            avoidability = physically_avoidable(
+                followup.scenario, slack=self.slack, sensor=self.sensor
+            )
+            details["physically_avoidable"] = avoidability.avoidable
+            details["relevant_time"] = avoidability.relevant_time
+            if not avoidability.avoidable:
+                return Verdict(True, self.name, avoidability.describe(), details)
+        because = f"; {avoidability.describe()}" if avoidability else ""
+        return Verdict(
+            False,
+            self.name,
+            f"the source avoided the collision ({source.describe()}) but follow-up "
+            f"{context.index} did not: {followup.describe()}{because}",
+            details,
+        )
+
+
+def avoided_stays_avoided(
+    *, excuse_unavoidable: bool = True, slack: float = 0.1, sensor: Sensor | None = None
+) -> AvoidedStaysAvoided:
+    """Iqbal's MR: an avoided collision stays avoided when the car's speed changes.
+
+    See :class:`AvoidedStaysAvoided`.
+    """
+    return AvoidedStaysAvoided(excuse_unavoidable=excuse_unavoidable, slack=slack, sensor=sensor)
+
+
+class ImpactSpeedMonotone(Relation):
+    """Approaching more slowly never raises the impact speed (avoided = 0 km/h).
+
+    Only follow-ups slower than the source are judged: a faster follow-up may avoid a
+    collision the source had (it reaches the braking stages earlier), so nothing is
+    required there.
+    """
+
+    def __init__(self, *, tolerance_kmh: float = 1.0) -> None:
+        if not (
+            isinstance(tolerance_kmh, (int, float))
+            and math.isfinite(tolerance_kmh)
+            and tolerance_kmh >= 0
+        ):
+            raise InvalidArgument(f"tolerance_kmh={tolerance_kmh!r} must be a number >= 0")
+        self.tolerance_kmh = float(tolerance_kmh)
+        self.name = f"slower approach, no faster impact (±{self.tolerance_kmh:g} km/h)"
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        source = _result(source_output, "source", self.name)
+        followup = _result(followup_output, "follow-up", self.name)
+        before, after = source.impact_speed_kmh, followup.impact_speed_kmh
+        details = {
+            "source_speed_kmh": source.scenario.ego_speed_kmh,
+            "followup_speed_kmh": followup.scenario.ego_speed_kmh,
+            "source_impact_kmh": before,
+            "followup_impact_kmh": after,
+        }
+        slower = followup.scenario.ego_speed_kmh < source.scenario.ego_speed_kmh
+        if not slower or after <= before + self.tolerance_kmh:
+            return Verdict(True, self.name, details=details)
+        return Verdict(
+            False,
+            self.name,
+            f"follow-up {context.index} approached at {followup.scenario.ego_speed_kmh:g} "
+            f"km/h instead of {source.scenario.ego_speed_kmh:g} km/h, yet hit at "
+            f"{after:.1f} km/h instead of {before:.1f} km/h",
+            details,
+        )
+
+
+def impact_speed_monotone(*, tolerance_kmh: float = 1.0) -> ImpactSpeedMonotone:
+    """See :class:`ImpactSpeedMonotone`."""
+    return ImpactSpeedMonotone(tolerance_kmh=tolerance_kmh)
+
+
+def speed_relation(
+    *,
+    min_speed_kmh: float = 15.0,
+    max_speed_kmh: float = 100.0,
+    step_kmh: float = 1.0,
+    keep: Literal["ego_start", "time"] = "ego_start",
+    excuse_unavoidable: bool = True,
+    slack: float = 0.1,
+    tolerance_kmh: float = 1.0,
+    sensor: Sensor | None = None,
+) -> Any:
+    """Iqbal's speed MR as a ``MetamorphicRelation`` for ``@metamorphic(relations=[...])``.
+
+    The follow-up is :func:`~pytest_metamorphic.strategies.driving.ego_speed_changes`
+    with the given speed range; the check is :func:`avoided_stays_avoided` ``&``
+    :func:`impact_speed_monotone`.
+    """
+    from pytest_metamorphic.core.engine import MetamorphicRelation
+    from pytest_metamorphic.strategies.driving import ego_speed_changes
+
+    options = {
+        "min_speed_kmh": min_speed_kmh,
+        "max_speed_kmh": max_speed_kmh,
+        "step_kmh": step_kmh,
+        "keep": keep,
+    }
+    # Validate now (at decoration time), not on the first draw.
+    from pytest_metamorphic.strategies.driving import _check_speed_options
+
+    _check_speed_options(**options)
+
+    def followup(source: Any) -> Any:
+        return ego_speed_changes(source, **options)
+
+    followup.__name__ = "ego_speed_changes"
+    return MetamorphicRelation(
+        "ego speed change",
+        followup,
+        avoided_stays_avoided(excuse_unavoidable=excuse_unavoidable, slack=slack, sensor=sensor)
+        & impact_speed_monotone(tolerance_kmh=tolerance_kmh),
+    )
