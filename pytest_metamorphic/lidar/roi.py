@@ -127,13 +127,14 @@ def _first_self_intersection(xy: NDArray[np.float64]) -> tuple[int, int] | None:
     """Indices (i, j) of the first two edges that meet where they should not, or None."""
     k = len(xy)
     start, end = xy, np.roll(xy, -1, axis=0)
-    for i in range(k):
-        # Edge i against every later edge j; neighbours share exactly one vertex.
-        j = np.arange(i + 1, k)
-        if len(j) == 0:
-            break
-        ax, ay, bx, by = start[i, 0], start[i, 1], end[i, 0], end[i, 1]
-        cx, cy, dx, dy = start[j, 0], start[j, 1], end[j, 0], end[j, 1]
+    # Edge i (rows) against every edge j > i (columns), a block of rows at a time.
+    block = max(1, _BLOCK_ELEMENTS // k)
+    j = np.arange(k)[None, :]
+    cx, cy, dx, dy = start[None, :, 0], start[None, :, 1], end[None, :, 0], end[None, :, 1]
+    for begin in range(0, k, block):
+        i = np.arange(begin, min(begin + block, k))[:, None]
+        ax, ay = start[i[:, 0], 0][:, None], start[i[:, 0], 1][:, None]
+        bx, by = end[i[:, 0], 0][:, None], end[i[:, 0], 1][:, None]
         o1 = _orientation(ax, ay, bx, by, cx, cy)
         o2 = _orientation(ax, ay, bx, by, dx, dy)
         o3 = _orientation(cx, cy, dx, dy, ax, ay)
@@ -146,13 +147,20 @@ def _first_self_intersection(xy: NDArray[np.float64]) -> tuple[int, int] | None:
             | ((o3 == 0) & _on_segment(cx, cy, dx, dy, ax, ay))
             | ((o4 == 0) & _on_segment(cx, cy, dx, dy, bx, by))
         )
-        adjacent = (j == i + 1) | ((i == 0) & (j == k - 1))
-        # Neighbours always touch at their shared vertex; they are bad only when they fold
-        # back over each other (collinear and pointing in opposite directions).
-        fold = adjacent & (o1 == 0) & (o2 == 0) & _folds(ax, ay, bx, by, cx, cy, dx, dy, i, j)
-        bad = np.where(adjacent, fold, proper | touch)
+        following = j == i + 1
+        wrap = (i == 0) & (j == k - 1)
+        # Neighbours always share a vertex; they are bad only when they fold back over each
+        # other (collinear, pointing in opposite directions from the shared vertex).
+        back = np.where(
+            following,
+            (ax - bx) * (dx - cx) + (ay - by) * (dy - cy),
+            (bx - ax) * (cx - dx) + (by - ay) * (cy - dy),
+        )
+        fold = (o1 == 0) & (o2 == 0) & (back > 0)
+        bad = np.where(following | wrap, fold, proper | touch) & (j > i)
         if bad.any():
-            return i, int(j[np.argmax(bad)])
+            row, column = np.argwhere(bad)[0]
+            return int(i[row, 0]), int(column)
     return None
 
 
@@ -163,16 +171,6 @@ def _on_segment(ax: Any, ay: Any, bx: Any, by: Any, px: Any, py: Any) -> NDArray
         & (np.minimum(ay, by) <= py)
         & (py <= np.maximum(ay, by))
     )
-
-
-def _folds(
-    ax: Any, ay: Any, bx: Any, by: Any, cx: Any, cy: Any, dx: Any, dy: Any, i: int, j: Any
-) -> NDArray[np.bool_]:
-    # For neighbours (i, i+1) the shared vertex is b == c; for (0, k-1) it is a == d.
-    following = j == i + 1
-    u = np.where(following, (ax - bx) * (dx - cx) + (ay - by) * (dy - cy), 0.0)
-    v = np.where(following, 0.0, (bx - ax) * (cx - dx) + (by - ay) * (cy - dy))
-    return (u > 0) | (v > 0)
 
 
 def _as_xy(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
