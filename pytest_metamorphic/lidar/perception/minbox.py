@@ -34,19 +34,19 @@ nudge of collinear clusters is omitted (it cannot change a float32 coordinate); 
 zero-length edge, where Apollo divides by zero and produces NaN, is never chosen.
 
 :func:`min_boxes` builds every cluster of a frame in one call: the per-cluster bounds and
-default boxes are vectorised, and points strictly inside the octagon of each cluster's
-extreme points (which cannot be hull vertices) are discarded before the hull, so the
+default boxes are vectorised, and points of large clusters lying strictly inside qhull's
+hull (which cannot be hull vertices) are discarded before the exact hull, so the
 per-cluster Python work depends on the hull size, not the point count.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import ConvexHull, QhullError
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 
@@ -54,15 +54,8 @@ __all__ = ["MinBox", "min_box", "min_boxes"]
 
 _EPSILON = 1e-6  # min_box.cc's EPSILON for the facing-edge tests
 _DEGENERATE = np.float32(1e-3)  # SetDefaultValue's minimum extent
-# Directions of the extreme points whose octagon prunes interior points, in
-# counter-clockwise order so that the octagon's inside is on the left of every edge.
-_OCTAGON = np.array(
-    [[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1]], dtype=np.float64
-)
-# A point is pruned only when inside every octagon edge by more than this (metres²,
-# a cross product): points on or near the octagon's boundary always reach the hull step.
-_PRUNE_MARGIN = 1e-9
-_PRUNE_FROM = 24  # clusters with more points than this are pruned before the hull
+_QHULL_FROM = 64  # clusters with more points are pruned with qhull before the hull
+_QHULL_MARGIN = 1e-6  # metres; qhull's rounding is below 1e-12 at LiDAR ranges
 
 
 @dataclass(frozen=True)
@@ -259,41 +252,29 @@ def _hull_candidates(
     """Per cluster, the points that may be hull vertices (others are strictly inside).
 
     ``xy`` holds the clusters contiguously (cluster ``c`` is rows ``starts[c]`` to
-    ``starts[c] + sizes[c]``). The octagon through each cluster's extreme points in
-    eight directions lies inside its hull, so a point strictly inside it is no vertex.
-    Small clusters are passed whole: pruning them costs more than it saves.
+    ``starts[c] + sizes[c]``). Clusters of more than ``_QHULL_FROM`` points are pruned
+    with qhull's hull: only points strictly inside it by more than ``_QHULL_MARGIN``
+    metres (far above its rounding) are dropped, so every true hull vertex survives.
+    qhull only prunes; the hull itself is always the exact monotone chain over what is
+    left, so the result cannot depend on qhull's choices or on the point order.
     """
-    keep = np.ones(len(xy), dtype=bool)
-    large = np.flatnonzero(sizes > _PRUNE_FROM)
-    if len(large):
-        rows = np.concatenate([np.arange(starts[c], starts[c] + sizes[c]) for c in large])
-        keep[rows] = ~_inside_octagon(xy[rows], sizes[large])
-    kept = np.add.reduceat(keep.astype(np.intp), starts)
-    values = xy[keep].tolist()
-    bounds = np.concatenate([[0], np.cumsum(kept)]).tolist()
-    return [
-        [tuple(v) for v in values[begin:end]] for begin, end in itertools.pairwise(bounds)
-    ]
+    result = []
+    for begin, size in zip(starts.tolist(), sizes.tolist(), strict=True):
+        chunk = xy[begin : begin + size]
+        if size > _QHULL_FROM:
+            chunk = chunk[~_inside_qhull(chunk)]
+        result.append([tuple(v) for v in chunk.tolist()])
+    return result
 
 
-def _inside_octagon(xy: NDArray[np.float64], sizes: NDArray[np.intp]) -> NDArray[np.bool_]:
-    """(n,) bool: strictly inside the octagon of its own cluster's extreme points."""
-    ids = np.repeat(np.arange(len(sizes)), sizes)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    projections = xy @ _OCTAGON.T
-    best = np.maximum.reduceat(projections, starts, axis=0)
-    rows = np.where(projections == best[ids], np.arange(len(xy))[:, None], len(xy))
-    corners = xy[np.minimum.reduceat(rows, starts, axis=0)]  # (clusters, 8, 2)
-    # Edge k runs from corner k to corner k + 1; the inside is on its left:
-    # normal . p > normal . corner, with normal = (-dy, dx).
-    dx = np.roll(corners[..., 0], -1, axis=1) - corners[..., 0]
-    dy = np.roll(corners[..., 1], -1, axis=1) - corners[..., 1]
-    offset = -dy * corners[..., 0] + dx * corners[..., 1]
-    cross = -dy[ids] * xy[:, :1] + dx[ids] * xy[:, 1:] - offset[ids]
-    degenerate = (dx == 0) & (dy == 0)
-    inside = (cross > _PRUNE_MARGIN) | degenerate[ids]
-    # A point-like octagon has no inside.
-    return inside.all(axis=1) & ~degenerate.all(axis=1)[ids]
+def _inside_qhull(xy: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(n,) bool: strictly inside qhull's hull by more than ``_QHULL_MARGIN``."""
+    try:
+        equations = ConvexHull(xy).equations  # unit outward normals and offsets
+    except QhullError:  # (nearly) collinear: nothing is inside
+        return np.zeros(len(xy), dtype=bool)
+    distance = xy @ equations[:, :2].T + equations[:, 2]
+    return (distance < -_QHULL_MARGIN).all(axis=1)
 
 
 def _convex_hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:

@@ -154,8 +154,13 @@ def test_interior_pruning_changes_nothing(
     labels = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
     pruned = min_boxes(points, labels)
     with monkeypatch_module.context() as patch:
-        patch.setattr(minbox, "_PRUNE_FROM", 10**9)
+        patch.setattr(minbox, "_QHULL_FROM", 10**9)
         whole = min_boxes(points, labels)
+    with monkeypatch_module.context() as patch:
+        patch.setattr(minbox, "_QHULL_FROM", 0)
+        eager = min_boxes(points, labels)
+    for a, b in zip(pruned, eager, strict=True):
+        _assert_same_box(a, b)
     for a, b in zip(pruned, whole, strict=True):
         _assert_same_box(a, b)
 
