@@ -1,0 +1,93 @@
+"""The reference AEB controller's staging and object selection, and the 3.6 m-lane mutant."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from pytest_metamorphic import InvalidArgument
+from pytest_metamorphic.driving.aeb import AEBController, mutant_fixed_lane, reference_controller
+from pytest_metamorphic.driving.kinematics import Observation, Track, physically_avoidable, simulate
+from pytest_metamorphic.driving.scenario import KINDS, PROTOCOLS, euro_ncap, euro_ncap_road
+
+
+def observe(speed: float, *tracks: Track, lane: tuple[float, float] = (-5.0, 5.0)) -> Observation:
+    return Observation(0.0, 0.01, speed, 4.358, 1.815, *lane, *lane, tracks)
+
+
+def walker(headway: float, d: float, *, vd: float = 1.4, vs: float = 0.0) -> Track:
+    return Track(0, "pedestrian", headway + 0.25, d, vs, vd, 0.5, 0.6)
+
+
+@pytest.mark.parametrize(
+    ("ttc", "stage", "deceleration"),
+    [(4.0, "off", 0.0), (3.5, "FCW", 0.0), (2.5, "PB1", 3.8), (1.5, "PB2", 5.3), (1.0, "FB", 9.8)],
+)
+def test_stages_follow_the_matlab_thresholds(ttc: float, stage: str, deceleration: float) -> None:
+    # At 10 m/s: FCW 3.7 s, PB1 2.71 s, PB2 1.97 s, FB 1.10 s.
+    controller = reference_controller()
+    command = controller(observe(10.0, walker(10.0 * ttc, 0.0)))
+    assert (command.stage, command.deceleration) == (stage, deceleration)
+    assert controller.ttc == pytest.approx(ttc)
+
+
+def test_braking_latches_and_escalates_but_warnings_do_not() -> None:
+    controller = reference_controller()
+    assert controller(observe(10.0, walker(35.0, 0.0))).stage == "FCW"
+    assert controller(observe(10.0)).stage == "off"  # nothing ahead any more: warning drops
+    assert controller(observe(10.0, walker(25.0, 0.0))).stage == "PB1"
+    assert controller(observe(9.0)).stage == "PB1"  # object gone: keeps braking
+    assert controller(observe(8.0, walker(5.0, 0.0))).stage == "FB"
+    assert controller(observe(0.0, walker(30.0, 0.0))).deceleration == 9.8  # held at standstill
+    controller.reset()
+    assert controller.stage == "off" and controller.mio is None
+
+
+def test_most_important_object_uses_the_real_lane_or_a_fixed_corridor() -> None:
+    near, wide, behind = walker(30.0, -0.5), walker(10.0, 4.0), walker(-1.0, 0.0)
+    parked = Track(1, "vehicle", 5.0, -2.8, 0.0, 0.0, 4.4, 1.8)
+    reference = reference_controller()
+    assert reference.most_important_object(observe(10.0, near, wide, behind, parked)) is wide
+    # On a 3 m lane the same pedestrian 4 m away is not a candidate yet.
+    narrow = observe(10.0, near, wide, parked, lane=(-1.5, 1.5))
+    assert reference.most_important_object(narrow) is near
+    mutant = mutant_fixed_lane()
+    assert mutant.lane_width == 3.6
+    assert mutant.most_important_object(observe(10.0, near, wide, parked)) is near
+    assert mutant.most_important_object(observe(10.0, walker(10.0, 1.79))).d == 1.79
+    assert mutant.most_important_object(observe(10.0, walker(10.0, 1.81))) is None
+    # A standing object counts only in the swept path: parked cars beside it never do.
+    standing = Track(2, "pedestrian", 12.0, 1.1, 0.0, 0.0, 0.5, 0.6)
+    assert reference.most_important_object(observe(10.0, parked, standing)) is standing
+    assert mutant.most_important_object(observe(10.0, parked)) is None
+
+
+def test_receding_objects_have_no_ttc() -> None:
+    controller = reference_controller()
+    command = controller(observe(5.0, walker(3.0, 0.0, vd=0.0, vs=6.0)))
+    assert math.isinf(controller.ttc) and command.stage == "off"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_reference_passes_every_protocol_test_on_the_10m_road(kind: str) -> None:
+    for speed in PROTOCOLS[kind].speeds_kmh:
+        result = simulate(euro_ncap(kind, ego_speed_kmh=speed), reference_controller())
+        assert result.avoided, result.describe()
+        assert result.first_brake_time is not None
+
+
+def test_mutant_collides_where_the_reference_stops_and_braking_could() -> None:
+    scenario = euro_ncap("CPFA-50", ego_speed_kmh=20).with_ego_speed(70)
+    assert simulate(scenario, reference_controller()).avoided
+    crash = simulate(scenario, mutant_fixed_lane())
+    assert crash.collision is not None and crash.collision.impact_speed_kmh > 20
+    assert physically_avoidable(scenario).avoidable
+
+
+def test_lane_width_is_validated() -> None:
+    with pytest.raises(InvalidArgument, match="lane_width"):
+        AEBController(lane_width=-3.6)
+    with pytest.raises(InvalidArgument, match="fb_deceleration"):
+        AEBController(fb_deceleration=0)
+    assert euro_ncap_road().lane_width == 10.0
