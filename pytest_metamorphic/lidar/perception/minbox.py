@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,7 +51,9 @@ from scipy.spatial import ConvexHull, QhullError
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 
-__all__ = ["MinBox", "min_box", "min_boxes"]
+__all__ = ["HullStart", "MinBox", "min_box", "min_boxes"]
+
+HullStart = Literal["apollo", "nearest"]
 
 _EPSILON = 1e-6  # min_box.cc's EPSILON for the facing-edge tests
 _DEGENERATE = np.float32(1e-3)  # SetDefaultValue's minimum extent
@@ -90,7 +93,12 @@ class MinBox:
         return math.atan2(self.direction[1], self.direction[0])
 
 
-def min_box(points: ArrayLike, *, ref_center: ArrayLike = (0.0, 0.0, 0.0)) -> MinBox:
+def min_box(
+    points: ArrayLike,
+    *,
+    ref_center: ArrayLike = (0.0, 0.0, 0.0),
+    start: HullStart = "apollo",
+) -> MinBox:
     """Build Apollo's MinBox for one obstacle cluster.
 
     Parameters
@@ -101,17 +109,24 @@ def min_box(points: ArrayLike, *, ref_center: ArrayLike = (0.0, 0.0, 0.0)) -> Mi
     ref_center : (3,) array_like
         The sensor position the "edges facing the sensor" are judged from (Apollo's
         ``ObjectBuilderOptions::ref_center``).
+    start : {"apollo", "nearest"}
+        Where the clockwise hull walk starts, see :func:`min_boxes`.
 
     Returns
     -------
     MinBox
     """
     xyz = _as_points(points)
-    return min_boxes(xyz, np.zeros(len(xyz), dtype=np.intp), ref_center=ref_center)[0]
+    labels = np.zeros(len(xyz), dtype=np.intp)
+    return min_boxes(xyz, labels, ref_center=ref_center, start=start)[0]
 
 
 def min_boxes(
-    points: ArrayLike, labels: ArrayLike, *, ref_center: ArrayLike = (0.0, 0.0, 0.0)
+    points: ArrayLike,
+    labels: ArrayLike,
+    *,
+    ref_center: ArrayLike = (0.0, 0.0, 0.0),
+    start: HullStart = "apollo",
 ) -> list[MinBox]:
     """Build Apollo's MinBox for every cluster of a frame.
 
@@ -123,6 +138,14 @@ def min_boxes(
         Cluster of each point, ``0 <= label < k``; every cluster must have a point.
     ref_center : (3,) array_like
         The sensor position (Apollo's ``ObjectBuilderOptions::ref_center``).
+    start : {"apollo", "nearest"}
+        The vertex the clockwise hull polygon starts at. ``"apollo"``: the largest
+        ``atan2`` about the centroid, as PCL sorts it. The facing-edge search breaks
+        near-ties (vertices on one laser ray, within ``EPSILON``) by that order, so with
+        ``"apollo"`` the box can change when the whole scene is turned about the sensor.
+        ``"nearest"``: the vertex nearest ``ref_center``, which turns with the scene; the
+        box is then rotation-equivariant (Apollo's boxes otherwise, up to the sign of
+        ``direction``).
 
     Returns
     -------
@@ -134,6 +157,8 @@ def min_boxes(
     xyz = _as_points(points)
     ids = _as_labels(labels, len(xyz))
     ref = _as_ref(ref_center)
+    if start not in ("apollo", "nearest"):
+        raise InvalidArgument(f"start={start!r} must be 'apollo' or 'nearest'")
     count = int(ids.max()) + 1
     sizes = np.bincount(ids, minlength=count)
     if not sizes.all():
@@ -152,7 +177,7 @@ def min_boxes(
     boxes = []
     for cluster, size in enumerate(sizes.tolist()):
         if size >= 4:
-            polygon = _hull_polygon(hulls[cluster], low[cluster], high[cluster])
+            polygon = _hull_polygon(hulls[cluster], low[cluster], high[cluster], start, ref)
             height = float(high[cluster, 2]) - float(low[cluster, 2])
         else:
             polygon = defaults.polygons[cluster]
@@ -298,7 +323,11 @@ def _convex_hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]
 
 
 def _hull_polygon(
-    candidates: list[tuple[float, float]], low: NDArray[np.float32], high: NDArray[np.float32]
+    candidates: list[tuple[float, float]],
+    low: NDArray[np.float32],
+    high: NDArray[np.float32],
+    start: HullStart,
+    ref: tuple[float, float, float],
 ) -> NDArray[np.float64]:
     """``ComputePolygon2dxy``: clockwise hull vertices, or the rectangle for collinear points."""
     z0 = float(low[2])
@@ -311,6 +340,11 @@ def _hull_polygon(
     cx = sum(p[0] for p in hull) / len(hull)
     cy = sum(p[1] for p in hull) / len(hull)
     hull.sort(key=lambda p: -math.atan2(p[1] - cy, p[0] - cx))
+    if start == "nearest":
+        first = min(
+            range(len(hull)), key=lambda i: math.hypot(hull[i][0] - ref[0], hull[i][1] - ref[1])
+        )
+        hull = hull[first:] + hull[:first]
     return np.array([(x, y, z0) for x, y in hull])
 
 

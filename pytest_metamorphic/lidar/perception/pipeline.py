@@ -42,7 +42,7 @@ from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception.classify import ClassifierParams, ObjectShape, classify
 from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Clusters, cluster_points
 from pytest_metamorphic.lidar.perception.ground import GroundParams, ground_heights
-from pytest_metamorphic.lidar.perception.minbox import MinBox, min_boxes
+from pytest_metamorphic.lidar.perception.minbox import HullStart, MinBox, min_boxes
 
 __all__ = ["PerceptionParams", "ReferencePerception", "Stages"]
 
@@ -71,6 +71,10 @@ class PerceptionParams:
         (kerbs, debris).
     sensor : (3,) tuple of float
         Sensor position in the cloud's frame; MinBox judges edges facing it.
+    hull_start : {"nearest", "apollo"}
+        Where MinBox's hull walk starts (see :func:`.minbox.min_boxes`): ``"nearest"``
+        (default) makes boxes turn with the scene; ``"apollo"`` is PCL's order, whose
+        tie-breaking depends on the scene's orientation.
     classifier : ClassifierParams
         Class rules.
     """
@@ -82,6 +86,7 @@ class PerceptionParams:
     min_cells: int = 2
     min_height: float = 0.4
     sensor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    hull_start: HullStart = "nearest"
     classifier: ClassifierParams = field(default_factory=ClassifierParams)
 
     def __post_init__(self) -> None:
@@ -97,6 +102,8 @@ class PerceptionParams:
         if len(sensor) != 3 or not all(math.isfinite(v) for v in sensor):
             raise InvalidArgument(f"sensor={self.sensor!r} must be 3 finite numbers")
         object.__setattr__(self, "sensor", sensor)
+        if self.hull_start not in ("nearest", "apollo"):
+            raise InvalidArgument(f"hull_start={self.hull_start!r} must be 'nearest' or 'apollo'")
 
 
 @dataclass(frozen=True)
@@ -162,15 +169,22 @@ class ReferencePerception:
     def run(self, cloud: Any, roi: Any = None) -> Stages:
         """Like calling the pipeline, but also report what each stage kept."""
         points, roi = _as_input(cloud, roi)
-        in_roi = points[self.roi_mask(points, roi)]
-        ground_z = self.ground_heights(in_roi)
-        keep = self.obstacle_mask(in_roi, ground_z)
+        sweep = self.prepare(points)
+        in_roi = sweep[self.roi_mask(sweep, roi)]
+        ground_z = self.ground_heights(in_roi, sweep)
+        keep = self.obstacle_mask(in_roi, ground_z, sweep)
         obstacles, ground_z = in_roi[keep], ground_z[keep]
-        clusters = self.segment(obstacles)
+        clusters = self.segment(obstacles, sweep)
         boxes = self.build_boxes(obstacles, ground_z, clusters)
         return Stages(len(in_roi), len(obstacles), clusters.count, boxes)
 
     # -- stages ---------------------------------------------------------------------------
+    # ``sweep`` is the whole cloud. The reference never looks at it past the ROI filter;
+    # it is passed so that faulty variants (.mutants) can, as real pipelines do.
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        """(m, 4) float32: the sweep the pipeline works on (the reference: unchanged)."""
+        return points
 
     def roi_mask(self, points: NDArray[np.float32], roi: Any) -> NDArray[np.bool_]:
         """(n,) bool: points in the ROI."""
@@ -178,18 +192,23 @@ class ReferencePerception:
             return np.ones(len(points), dtype=bool)
         return np.asarray(roi.contains(points[:, :2], method=self.params.roi_method), dtype=bool)
 
-    def ground_heights(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32]
+    ) -> NDArray[np.float32]:
         """(n,) float32: local ground height under each ROI point."""
         return ground_heights(points, self.params.ground)
 
     def obstacle_mask(
-        self, points: NDArray[np.float32], ground_z: NDArray[np.float32]
+        self,
+        points: NDArray[np.float32],
+        ground_z: NDArray[np.float32],
+        sweep: NDArray[np.float32],
     ) -> NDArray[np.bool_]:
         """(n,) bool: points that are neither ground nor above ``max_height``."""
         above = points[:, 2] - ground_z
         return (above >= self.params.ground.tolerance) & (above <= self.params.max_height)
 
-    def segment(self, points: NDArray[np.float32]) -> Clusters:
+    def segment(self, points: NDArray[np.float32], sweep: NDArray[np.float32]) -> Clusters:
         """Connected components of the obstacle points."""
         return cluster_points(points, self.params.cluster)
 
@@ -207,12 +226,12 @@ class ReferencePerception:
         np.maximum.at(top, labels, z)
         np.minimum.at(bottom, labels, z)
         np.minimum.at(ground, labels, ground_z)
-        keep = (clusters.cells >= self.params.min_cells) & (top - ground >= self.params.min_height)
+        keep = self.keep_objects(clusters, top - ground)
         kept = np.flatnonzero(keep)
         if len(kept) == 0:
             return []
         cluster_points_, cluster_labels = _member_points(points, labels, keep, clusters.cells)
-        shapes = min_boxes(cluster_points_, cluster_labels, ref_center=self.params.sensor)
+        shapes = self.fit_boxes(cluster_points_, cluster_labels)
         features = ObjectShape(
             length=np.array([shape.length for shape in shapes]),
             width=np.array([shape.width for shape in shapes]),
@@ -228,6 +247,18 @@ class ReferencePerception:
             )
         ]
         return sorted(boxes, key=_sort_key)
+
+    def keep_objects(
+        self, clusters: Clusters, top: NDArray[np.float32]
+    ) -> NDArray[np.bool_]:
+        """(count,) bool: objects big and tall enough (``top``: highest point above ground)."""
+        return (clusters.cells >= self.params.min_cells) & (top >= self.params.min_height)
+
+    def fit_boxes(self, points: NDArray[np.float32], labels: NDArray[np.intp]) -> list[MinBox]:
+        """Apollo's MinBox for every kept object (labels 0..k-1)."""
+        return min_boxes(
+            points, labels, ref_center=self.params.sensor, start=self.params.hull_start
+        )
 
     def classify(self, features: ObjectShape) -> list[str]:
         """Class of every kept object."""

@@ -1,0 +1,288 @@
+"""Faulty variants of the reference pipeline, each modelled on a real failure mechanism.
+
+Each mutant changes one stage of :class:`~.pipeline.ReferencePerception` and is
+selectable by name: ``mutant("full_cloud_ground")``. They exist to measure how well
+metamorphic relations find real faults (``bench/mutation_score.py``); a relation that
+kills none of them is not worth running.
+
+==========================  =================================================================
+name                        fault
+==========================  =================================================================
+full_cloud_ground           ground estimated from every point, not only ROI points (Apollo's
+                            ``use_full_cloud: true``, the root cause of Apollo issue #3341)
+full_cloud_height_cut       height cut-off taken from a percentile of the whole sweep
+random_point_budget         random subsample to a point budget before the ROI filter
+truncating_buffer           fixed 120,000-point buffer: later points silently dropped
+voxel_budget                voxel size adapted to the sweep's point count, before the ROI
+global_ground_plane         one ground plane fitted to the lowest points of the whole sweep
+roi_off_by_one              ROI bitmap looked up one cell off in x
+count_scaled_radius         clustering cell scaled with the sweep's point count
+order_dependent_voxels      voxel filter keeping the first point of each voxel
+grid_anchored_at_sweep      clustering grid anchored at the sweep's bounding box
+axis_aligned_boxes          axis-aligned bounding boxes instead of MinBox
+raw_point_count             small objects kept by raw point count (repeats count twice)
+==========================  =================================================================
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Clusters, cluster_points
+from pytest_metamorphic.lidar.perception.ground import ground_heights
+from pytest_metamorphic.lidar.perception.minbox import MinBox
+from pytest_metamorphic.lidar.perception.pipeline import PerceptionParams, ReferencePerception
+
+__all__ = ["MUTANTS", "mutant"]
+
+
+class FullCloudGround(ReferencePerception):
+    """Ground heights estimated from the whole sweep, then applied to the ROI points.
+
+    Apollo's default ``use_full_cloud: true`` built the segmentation features from all
+    points, not only those in the ROI, so points far outside the ROI changed obstacles
+    inside it (Zhou & Sun's MR1 violations; Apollo issue #3341). Here the ground grid
+    sees points outside the ROI: a low point just outside lowers the ground under
+    objects near the ROI's edge.
+    """
+
+    name = "full_cloud_ground"
+
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32]
+    ) -> NDArray[np.float32]:
+        both = np.concatenate([points, sweep])
+        return ground_heights(both, self.params.ground)[: len(points)]
+
+
+class FullCloudHeightCut(ReferencePerception):
+    """Overhanging points cut at the sweep's 99th z percentile instead of above the ground.
+
+    A "robust" global threshold computed over the whole cloud: any point anywhere,
+    inside the ROI or not, moves it.
+    """
+
+    name = "full_cloud_height_cut"
+
+    def obstacle_mask(
+        self,
+        points: NDArray[np.float32],
+        ground_z: NDArray[np.float32],
+        sweep: NDArray[np.float32],
+    ) -> NDArray[np.bool_]:
+        cut = np.percentile(sweep[:, 2], 99.0)
+        above = points[:, 2] - ground_z
+        return (above >= self.params.ground.tolerance) & (points[:, 2] <= cut)
+
+
+class RandomPointBudget(ReferencePerception):
+    """A random subsample to at most ``budget`` points, taken before the ROI filter.
+
+    Learned detectors take a fixed number of points; sampling the whole sweep (instead
+    of the ROI) with a fixed seed makes every kept point depend on every other one.
+    """
+
+    name = "random_point_budget"
+    budget = 100_000
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        if len(points) <= self.budget:
+            return points
+        chosen = np.random.default_rng(0).choice(len(points), self.budget, replace=False)
+        return points[np.sort(chosen)]
+
+
+class TruncatingBuffer(ReferencePerception):
+    """Only the first 120,000 points are processed (a fixed-size sweep buffer)."""
+
+    name = "truncating_buffer"
+    capacity = 120_000
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        return points[: self.capacity]
+
+
+class VoxelBudget(ReferencePerception):
+    """Voxel downsampling whose voxel size grows with the sweep's size, before the ROI.
+
+    Keeping memory constant by scaling the voxel edge with the point count: any point
+    anywhere moves every voxel border. Each voxel is replaced by its centroid.
+    """
+
+    name = "voxel_budget"
+    base_size = 0.08  # metres at 100,000 points
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        size = self.base_size * math.sqrt(max(len(points), 1) / 100_000)
+        keys = _voxel_keys(points[:, :3], size)
+        _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+        sums = np.zeros((len(counts), 4))
+        np.add.at(sums, inverse, points)
+        return (sums / counts[:, None]).astype(np.float32)
+
+
+class GlobalGroundPlane(ReferencePerception):
+    """One ground plane z = ax + by + c, least squares over the lowest point per 2 m cell.
+
+    Fitted on all points of the sweep rather than locally in the ROI.
+    """
+
+    name = "global_ground_plane"
+
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32]
+    ) -> NDArray[np.float32]:
+        _, inverse = np.unique(_voxel_keys(sweep[:, :2], 2.0), return_inverse=True)
+        lowest = np.full(inverse.max() + 1, np.inf)
+        np.minimum.at(lowest, inverse, sweep[:, 2])
+        pick = sweep[:, 2] == lowest[inverse]
+        x, y, z = (sweep[pick, i].astype(np.float64) for i in range(3))
+        design = np.column_stack([x, y, np.ones_like(x)])
+        (a, b, c), *_ = np.linalg.lstsq(design, z, rcond=None)
+        return (a * points[:, 0] + b * points[:, 1] + c).astype(np.float32)
+
+
+class RoiOffByOne(ReferencePerception):
+    """The ROI bitmap is looked up one cell off in x (``ix + 1``): an indexing slip."""
+
+    name = "roi_off_by_one"
+
+    def roi_mask(self, points: NDArray[np.float32], roi: object) -> NDArray[np.bool_]:
+        if roi is None:
+            return np.ones(len(points), dtype=bool)
+        shifted = points[:, :2].astype(np.float64)
+        shifted[:, 0] += float(getattr(roi, "cell_size", 0.25))
+        return np.asarray(roi.contains(shifted, method=self.params.roi_method), dtype=bool)
+
+
+class CountScaledRadius(ReferencePerception):
+    """The clustering cell grows with the square root of the sweep's point count.
+
+    Meant to keep sparse sweeps connected; a point outside the ROI changes it.
+    """
+
+    name = "count_scaled_radius"
+
+    def segment(self, points: NDArray[np.float32], sweep: NDArray[np.float32]) -> Clusters:
+        scale = math.sqrt(max(len(sweep), 1) / 120_000)
+        params = ClusterParams(cell_size=self.params.cluster.cell_size * scale)
+        return cluster_points(points, params)
+
+
+class OrderDependentVoxels(ReferencePerception):
+    """A 0.1 m voxel filter that keeps the first point it meets in each voxel."""
+
+    name = "order_dependent_voxels"
+    size = 0.1
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        _, first = np.unique(_voxel_keys(points[:, :3], self.size), return_index=True)
+        return points[np.sort(first)]
+
+
+class GridAnchoredAtSweep(ReferencePerception):
+    """The clustering grid starts at the sweep's minimum corner, not at the sensor.
+
+    ``floor((xy - xy.min()) / cell)`` over the whole cloud: any point that extends the
+    bounding box shifts every cell border.
+    """
+
+    name = "grid_anchored_at_sweep"
+
+    def segment(self, points: NDArray[np.float32], sweep: NDArray[np.float32]) -> Clusters:
+        if len(points) == 0:
+            return cluster_points(points, self.params.cluster)
+        corner = sweep[:, :2].min(axis=0)
+        cell = self.params.cluster.cell_size
+        # Shift so that the sensor-anchored grid of cluster_points starts at the corner.
+        offset = corner - np.floor(corner / cell) * cell
+        return cluster_points(points[:, :2] - offset, self.params.cluster)
+
+
+class AxisAlignedBoxes(ReferencePerception):
+    """Axis-aligned bounding boxes instead of MinBox: headings are always 0 or 90 degrees."""
+
+    name = "axis_aligned_boxes"
+
+    def fit_boxes(self, points: NDArray[np.float32], labels: NDArray[np.intp]) -> list[MinBox]:
+        count = int(labels.max()) + 1
+        low = np.full((count, 3), np.inf, dtype=np.float32)
+        high = np.full((count, 3), -np.inf, dtype=np.float32)
+        np.minimum.at(low, labels, points[:, :3])
+        np.maximum.at(high, labels, points[:, :3])
+        sizes = np.bincount(labels, minlength=count)
+        boxes = []
+        for lo, hi, size in zip(low.tolist(), high.tolist(), sizes.tolist(), strict=True):
+            dx, dy = hi[0] - lo[0], hi[1] - lo[1]
+            direction = (1.0, 0.0, 0.0) if dx >= dy else (0.0, 1.0, 0.0)
+            boxes.append(
+                MinBox(
+                    center=((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]),
+                    length=max(dx, dy),
+                    width=min(dx, dy),
+                    height=hi[2] - lo[2],
+                    direction=direction,
+                    polygon=np.array([[lo[0], lo[1], lo[2]]]),
+                    points=size,
+                )
+            )
+        return boxes
+
+
+class RawPointCount(ReferencePerception):
+    """Objects of fewer than 4 cells kept only with at least 6 points, counting repeats.
+
+    Point-count thresholds (PCL's ``setMinClusterSize``) count a point the driver sent
+    twice as two.
+    """
+
+    name = "raw_point_count"
+    min_points = 6
+
+    def keep_objects(self, clusters: Clusters, top: NDArray[np.float32]) -> NDArray[np.bool_]:
+        counts = np.bincount(clusters.labels, minlength=clusters.count)
+        small = clusters.cells < 4
+        enough = np.where(small, counts >= self.min_points, True)
+        return enough & (clusters.cells >= self.params.min_cells) & (top >= self.params.min_height)
+
+
+def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
+    """(n,) int64: one key per voxel of edge ``size`` (cells packed into one integer)."""
+    cells = np.floor(coordinates / np.float32(size)).astype(np.int64)
+    cells -= cells.min(axis=0)
+    key = np.zeros(len(cells), dtype=np.int64)
+    for column in range(cells.shape[1]):
+        key = key * (int(cells[:, column].max()) + 1) + cells[:, column]
+    return key
+
+
+MUTANTS: dict[str, type[ReferencePerception]] = {
+    cls.name: cls
+    for cls in (
+        FullCloudGround,
+        FullCloudHeightCut,
+        RandomPointBudget,
+        TruncatingBuffer,
+        VoxelBudget,
+        GlobalGroundPlane,
+        RoiOffByOne,
+        CountScaledRadius,
+        OrderDependentVoxels,
+        GridAnchoredAtSweep,
+        AxisAlignedBoxes,
+        RawPointCount,
+    )
+}
+
+
+def mutant(name: str, params: PerceptionParams | None = None) -> ReferencePerception:
+    """The faulty pipeline called ``name`` (see the module docstring for the list)."""
+    try:
+        cls = MUTANTS[name]
+    except (KeyError, TypeError):
+        raise InvalidArgument(f"unknown mutant {name!r}; known: {sorted(MUTANTS)}") from None
+    return cls(params)
