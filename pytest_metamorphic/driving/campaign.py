@@ -49,10 +49,11 @@ __all__ = [
 
 ControllerFactory = Callable[[], Callable[[Observation], "float | BrakeCommand"]]
 
-#: The two real streets of the default campaign: (file under the data folder, street name).
-OSM_STREETS: tuple[tuple[str, str], ...] = (
-    ("osm_osmnx/planet_10.068,48.135_10.071,48.137.osm", "Goethestraße"),
-    ("osm_osmnx/West-Oakland.osm.bz2", "8th Street"),
+#: The two real streets of the default campaign: (file under the data folder, street name,
+#: place). Both are two-way residential streets without width tags: 6 m, two 3 m lanes.
+OSM_STREETS: tuple[tuple[str, str, str], ...] = (
+    ("osm_osmnx/planet_10.068,48.135_10.071,48.137.osm", "Goethestraße", "Kirchberg, DE"),
+    ("osm_osmnx/West-Oakland.osm.bz2", "8th Street", "West Oakland, CA"),
 )
 #: Room left between the collision point and the end of a real street (m).
 _STREET_END_MARGIN = 10.0
@@ -133,12 +134,14 @@ class CampaignRow:
         return len(self.avoidable_violations) / self.followups if self.followups else 0.0
 
 
-def _street(data_dir: Path, relative: str, name: str) -> RoadGeometry:
+def _street(data_dir: Path, relative: str, name: str) -> tuple[RoadGeometry, int]:
+    """The longest drivable way called ``name`` and its OSM id."""
     path = data_dir / relative
     roads = [r for r in load_roads(path, highway=DRIVABLE_HIGHWAYS) if r.name == name]
     if not roads:
         raise DataError(f"has no drivable way named {name!r}", path=path)
-    return RoadGeometry.from_osm(max(roads, key=lambda road: road.length))
+    road = max(roads, key=lambda road: road.length)
+    return RoadGeometry.from_osm(road), road.way_id
 
 
 def default_sources(
@@ -146,7 +149,7 @@ def default_sources(
     *,
     kind: str = "CPNCO-50",
     speed_kmh: float = 20.0,
-    streets: Sequence[tuple[str, str]] = OSM_STREETS,
+    streets: Sequence[tuple[str, str, str]] = OSM_STREETS,
 ) -> list[CampaignSource]:
     """Iqbal's three sources: the Euro NCAP straight 10 m road and two real OSM streets.
 
@@ -162,18 +165,17 @@ def default_sources(
         The Euro NCAP test (Iqbal: the child nearside test, CPNCO-50).
     speed_kmh : float
         The source speed (Iqbal: 20 km/h).
-    streets : sequence of (relative path, street name)
+    streets : sequence of (relative path, street name, place)
     """
     if kind not in PROTOCOLS:
         raise InvalidArgument(f"kind={kind!r} must be one of {list(PROTOCOLS)}")
     data_dir = Path(data_dir)
     sources = [CampaignSource(euro_ncap_road().name, euro_ncap(kind, ego_speed_kmh=speed_kmh))]
-    for relative, name in streets:
-        road = _street(data_dir, relative, name)
+    for relative, name, place in streets:
+        road, way_id = _street(data_dir, relative, name)
         conflict = min(road.length - _STREET_END_MARGIN, _MAX_CONFLICT_S)
         scenario = euro_ncap(kind, ego_speed_kmh=speed_kmh, road=road, conflict_s=conflict)
-        label = f"{name} ({Path(relative).name.split('.')[0]}, OSM way)"
-        sources.append(CampaignSource(label, scenario))
+        sources.append(CampaignSource(f"{name}, {place} (OSM way {way_id})", scenario))
     return sources
 
 

@@ -154,8 +154,9 @@ class Controller(Protocol):
 def is_relevant(track: Track, observation: Observation) -> bool:
     """The physical relevance rule (also the reference controller's object selection).
 
-    An actor matters when its centre is inside the car's real lane and it is moving, or
-    when it stands in the car's swept path (laterally overlapping the car's body).
+    An actor matters when its centre is inside the car's real lane and it is moving (at
+    0.1 m/s or more, :attr:`Track.moving`), or when it stands in the car's swept path
+    (laterally overlapping the car's body).
     """
     if track.moving and observation.lane_right <= track.d <= observation.lane_left:
         return True
@@ -717,10 +718,7 @@ class Avoidability:
         when = f"relevant at t={self.relevant_time:.2f} s"
         if self.avoidable:
             return f"avoidable: {when}, full braking stops {self.gap:.2f} m short"
-        return (
-            f"unavoidable: {when}, full braking still hits at "
-            f"{-self.gap / KMH:.1f} km/h"
-        )
+        return f"unavoidable: {when}, full braking still hits at {-self.gap / KMH:.1f} km/h"
 
 
 class _IdealBraking:

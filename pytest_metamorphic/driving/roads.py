@@ -277,6 +277,10 @@ class RoadGeometry:
     def __repr__(self) -> str:
         return f"RoadGeometry({self.describe()})"
 
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        # Hypothesis prints falsifying examples with this instead of every dataclass field.
+        printer.text(repr(self))
+
     def equals(self, other: object) -> bool:
         """Exact equality (used by the engine's determinism check)."""
         return (

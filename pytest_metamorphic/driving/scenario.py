@@ -30,7 +30,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -428,6 +428,10 @@ class Scenario:
             f"conflict_s={self.conflict_s:g}, ego_distance={self.ego_distance:g}, "
             f"ego_lane={self.ego_lane}{extra})"
         )
+
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        # Hypothesis prints falsifying examples with this instead of every dataclass field.
+        printer.text(repr(self))
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Scenario):

@@ -33,11 +33,12 @@ def test_default_sources_are_the_test_road_and_two_real_streets(shared_data: Pat
         assert (scenario.kind, scenario.ego_speed_kmh) == ("CPNCO-50", 20.0)
         assert scenario.time_to_collision_point == pytest.approx(6.0)
         assert 0 <= scenario.ego_start_s < scenario.conflict_s <= scenario.road.length
+    assert sources[2].name == "8th Street, West Oakland, CA (OSM way 6358365)"
     street = sources[1].scenario
     assert street.road.width == 6.0 and street.road.lanes == 2
     assert street.ego_offset == pytest.approx(-1.5)  # right-hand lane of a two-way street
     with pytest.raises(DataError, match="no drivable way named"):
-        default_sources(shared_data, streets=[("osm_osmnx/West-Oakland.osm.bz2", "Nowhere Rd")])
+        default_sources(shared_data, streets=[("osm_osmnx/West-Oakland.osm.bz2", "Nowhere Rd", "")])
 
 
 def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path) -> None:
