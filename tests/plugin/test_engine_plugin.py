@@ -469,12 +469,13 @@ def test_campaign_under_xdist_equals_single_process(pytester: pytest.Pytester) -
 def test_interrupted_campaign_resumes(pytester: pytest.Pytester) -> None:
     pytester.makepyfile(test_c=CAMPAIGN)
     # Only shards 0 and 1 run: the merged report says it is partial.
-    result = pytester.runpytest("--mt-campaign", "-k", "shard0 or shard1")
+    # Subprocesses: the reports import matplotlib, which cannot be re-imported in-process.
+    result = pytester.runpytest_subprocess("--mt-campaign", "-k", "shard0 or shard1")
     result.stdout.fnmatch_lines(["*PARTIAL: 20 of 40 sources*"])
     logs = sorted((pytester.path / "mt-campaigns" / "dedupe").glob("shard-*.jsonl"))
     assert [p.name for p in logs] == ["shard-0-of-4.jsonl", "shard-1-of-4.jsonl"]
     before = logs[0].read_text()
-    result = pytester.runpytest("--mt-campaign", "--mt-resume")
+    result = pytester.runpytest_subprocess("--mt-campaign", "--mt-resume")
     result.stdout.fnmatch_lines(["*(complete)*"])
     assert logs[0].read_text() == before  # finished work was read back, not redone
 
