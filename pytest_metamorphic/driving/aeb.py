@@ -11,10 +11,12 @@ Staging (MATLAB/Simulink "Autonomous Emergency Braking with Sensor Fusion" examp
 
 Most important object: the closest actor ahead whose centre lies in the car's corridor
 (and, when it stands still, only if it is in the car's swept path, so parked cars beside
-the lane are ignored). The reference controller takes the corridor from the map: the car's
-real lane at its position (``Observation.lane_right/lane_left``). MATLAB's example, when it
-has no lane detections, assumes a 3.6 m lane centred on the car; on a 10 m road that
-ignores a pedestrian until it is 1.8 m from the car's path — the fault Iqbal found.
+the lane are ignored). The reference controller takes the corridor from the map, i.e. the
+road's real geometry: a moving pedestrian counts anywhere on the carriageway
+(``Observation.road_right/road_left``), other actors only in the car's own lane
+(``lane_right/lane_left``, so oncoming cars are no braking targets). MATLAB's example,
+without lane detections, assumes a 3.6 m lane centred on the car; on a 10 m road that
+ignores a pedestrian until it is 1.8 m from the car's path, the fault Iqbal found.
 :func:`mutant_fixed_lane` is exactly that controller.
 """
 
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.kinematics import BrakeCommand, Observation, Track, is_relevant
@@ -39,9 +42,12 @@ class AEBController:
     Parameters
     ----------
     lane_width : float or None
-        None (reference): the MIO corridor is the car's real lane from the map. A number:
-        a corridor of that width centred on the car's path, whatever the road is like
-        (3.6 is the MATLAB example's default and the mutant).
+        None (reference): the MIO corridor comes from the map (see ``pedestrian_region``).
+        A number: a corridor of that width centred on the car's path for every actor,
+        whatever the road is like (3.6 is the MATLAB example's default and the mutant).
+    pedestrian_region : {"road", "lane"}
+        With ``lane_width=None``: where a moving pedestrian becomes a candidate, anywhere
+        on the carriageway (default) or only in the car's lane.
     fcw_deceleration, fcw_reaction_time : float
         FCW time = ``v / fcw_deceleration + fcw_reaction_time``.
     pb1_deceleration, pb2_deceleration, fb_deceleration : float
@@ -51,6 +57,7 @@ class AEBController:
     """
 
     lane_width: float | None = None
+    pedestrian_region: Literal["road", "lane"] = "road"
     fcw_deceleration: float = 4.0
     fcw_reaction_time: float = 1.2
     pb1_deceleration: float = 3.8
@@ -68,6 +75,10 @@ class AEBController:
             and self.lane_width > 0
         ):
             raise InvalidArgument(f"lane_width={self.lane_width!r} must be None or > 0")
+        if self.pedestrian_region not in ("road", "lane"):
+            raise InvalidArgument(
+                f"pedestrian_region={self.pedestrian_region!r} must be 'road' or 'lane'"
+            )
         for name in ("fcw_deceleration", "pb1_deceleration", "pb2_deceleration", "fb_deceleration"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -83,7 +94,8 @@ class AEBController:
     def in_corridor(self, track: Track, observation: Observation) -> bool:
         """Whether an actor is a braking candidate (see the module docstring)."""
         if self.lane_width is None:
-            return is_relevant(track, observation)
+            region = self.pedestrian_region if track.kind == "pedestrian" else "lane"
+            return is_relevant(track, observation, region)
         if track.moving and abs(track.d) <= self.lane_width / 2:
             return True
         return abs(track.d) < (observation.ego_width + track.width) / 2
@@ -133,7 +145,7 @@ class AEBController:
 
 
 def reference_controller() -> AEBController:
-    """The reference AEB: MATLAB staging, MIO corridor = the car's real lane."""
+    """The reference AEB: MATLAB staging, MIO corridor from the road's real geometry."""
     return AEBController(lane_width=None)
 
 

@@ -186,6 +186,7 @@ def iqbal_campaign(
     speeds_kmh: Iterable[float] = range(15, 101),
     keep: Literal["ego_start", "time"] = "ego_start",
     slack: float = 0.1,
+    relevance: Literal["lane", "road"] = "road",
     progress: Callable[[str], None] | None = None,
 ) -> list[CampaignRow]:
     """Run every source at every speed with every controller.
@@ -202,7 +203,7 @@ def iqbal_campaign(
         follow-ups around a 20 km/h source).
     keep : {"ego_start", "time"}
         How the follow-up re-synchronises (:meth:`Scenario.with_ego_speed`).
-    slack : float
+    slack, relevance
         Passed to :func:`physically_avoidable`.
     progress : callable(str), optional
         Called once per finished row.
@@ -243,7 +244,9 @@ def iqbal_campaign(
                 continue
             key = (source.name, speed)
             if key not in avoidability_cache:
-                avoidability_cache[key] = physically_avoidable(scenario, slack=slack)
+                avoidability_cache[key] = physically_avoidable(
+                    scenario, slack=slack, relevance=relevance
+                )
             collisions.append(
                 CampaignCollision(
                     speed_kmh=speed,
@@ -369,13 +372,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--source-speed", type=float, default=20.0)
     parser.add_argument("--min-speed", type=int, default=15, help="lowest follow-up km/h")
     parser.add_argument("--max-speed", type=int, default=100, help="highest follow-up km/h")
+    parser.add_argument(
+        "--relevance",
+        choices=("lane", "road"),
+        default="road",
+        help="the pedestrian counts from stepping onto the road (default) or into the lane",
+    )
     args = parser.parse_args(argv)
     speeds = range(args.min_speed, args.max_speed + 1)
     kinds = args.kind or ["CPNCO-50"]
     keeps = args.keep or ["ego_start"]
     for kind, keep in itertools.product(kinds, keeps):
         sources = default_sources(args.data, kind=kind, speed_kmh=args.source_speed)
-        rows = iqbal_campaign(sources, speeds_kmh=speeds, keep=keep)
+        rows = iqbal_campaign(sources, speeds_kmh=speeds, keep=keep, relevance=args.relevance)
         follow = "car start kept, pedestrian re-timed" if keep == "ego_start" else "TTC kept"
         print(format_campaign(rows, title=f"{kind}, source {args.source_speed:g} km/h, {follow}"))
         print()

@@ -151,14 +151,23 @@ class Controller(Protocol):
     def __call__(self, observation: Observation) -> float | BrakeCommand: ...
 
 
-def is_relevant(track: Track, observation: Observation) -> bool:
+Region = Literal["lane", "road"]
+
+
+def is_relevant(track: Track, observation: Observation, region: Region = "lane") -> bool:
     """The physical relevance rule (also the reference controller's object selection).
 
-    An actor matters when its centre is inside the car's real lane and it is moving (at
-    0.1 m/s or more, :attr:`Track.moving`), or when it stands in the car's swept path
-    (laterally overlapping the car's body).
+    An actor matters when it is moving (at 0.1 m/s or more, :attr:`Track.moving`) with its
+    centre inside the car's real lane (``region="lane"``; ``"road"``: anywhere on the
+    carriageway), or when it stands in the car's swept path (laterally overlapping the
+    car's body).
     """
-    if track.moving and observation.lane_right <= track.d <= observation.lane_left:
+    right, left = (
+        (observation.lane_right, observation.lane_left)
+        if region == "lane"
+        else (observation.road_right, observation.road_left)
+    )
+    if track.moving and right <= track.d <= left:
         return True
     return abs(track.d) < (observation.ego_width + track.width) / 2
 
@@ -724,9 +733,10 @@ class Avoidability:
 class _IdealBraking:
     """Full braking from the first step the pedestrian is relevant (+ ``slack``)."""
 
-    def __init__(self, deceleration: float, slack: float) -> None:
+    def __init__(self, deceleration: float, slack: float, region: Region) -> None:
         self.deceleration = deceleration
         self.slack = slack
+        self.region = region
         self.relevant_time: float | None = None
 
     def reset(self) -> None:
@@ -734,7 +744,9 @@ class _IdealBraking:
 
     def __call__(self, observation: Observation) -> float:
         if self.relevant_time is None and any(
-            track.kind == "pedestrian" and track.headway > -0.5 and is_relevant(track, observation)
+            track.kind == "pedestrian"
+            and track.headway > -0.5
+            and is_relevant(track, observation, self.region)
             for track in observation.tracks
         ):
             self.relevant_time = observation.time
@@ -750,23 +762,26 @@ def physically_avoidable(
     scenario: Scenario,
     *,
     slack: float = 0.1,
+    relevance: Region = "road",
     dt: float = 0.01,
     sensor: Sensor | None = None,
 ) -> Avoidability:
     """Whether a collision in ``scenario`` could have been avoided by braking alone.
 
     Definition: the pedestrian becomes *relevant* at the first moment it is visible to the
-    car's sensor (not hidden by the parked cars) and either moving with its centre inside
-    the car's real lane (from the road geometry) or standing in the car's swept path. The
-    collision is *physically avoidable* when the car, braking at its ``max_deceleration``
-    (after its ``brake_delay``) from ``slack`` seconds after that moment, stops or is
-    overtaken without touching the pedestrian. ``slack`` absorbs one control step and the
-    rounding of a fixed-step controller; a controller that does better than this is
-    never blamed for a collision.
+    car's sensor (not hidden by the parked cars) and either moving with its centre on the
+    carriageway (from the road geometry; ``relevance="lane"``: only inside the car's own
+    lane, a laxer standard for the car) or standing in the car's swept path.
+    The collision is *physically avoidable* when the car, braking at its
+    ``max_deceleration`` (after its ``brake_delay``) from ``slack`` seconds after that
+    moment, stops or is overtaken without touching the pedestrian. ``slack`` absorbs one
+    control step and the rounding of a fixed-step controller.
     """
-    if not (math.isfinite(slack) and slack >= 0):
+    if not (isinstance(slack, (int, float)) and math.isfinite(slack) and slack >= 0):
         raise InvalidArgument(f"slack={slack!r} must be >= 0")
-    ideal = _IdealBraking(scenario.vehicle.max_deceleration, slack)
+    if relevance not in ("lane", "road"):
+        raise InvalidArgument(f"relevance={relevance!r} must be 'lane' or 'road'")
+    ideal = _IdealBraking(scenario.vehicle.max_deceleration, slack, relevance)
     result = simulate(scenario, ideal, dt=dt, sensor=sensor)
     if ideal.relevant_time is None:
         return Avoidability(False, None, -result.impact_speed)

@@ -61,12 +61,19 @@ class AvoidedStaysAvoided(Relation):
     slack : float
         Seconds of grace after the pedestrian becomes relevant (see
         :func:`physically_avoidable`).
+    relevance : {"lane", "road"}
+        When the pedestrian starts to count (see :func:`physically_avoidable`).
     sensor : Sensor, optional
         The sensor model the system under test used (for the relevance of the pedestrian).
     """
 
     def __init__(
-        self, *, excuse_unavoidable: bool = True, slack: float = 0.1, sensor: Sensor | None = None
+        self,
+        *,
+        excuse_unavoidable: bool = True,
+        slack: float = 0.1,
+        relevance: Literal["lane", "road"] = "road",
+        sensor: Sensor | None = None,
     ) -> None:
         if not isinstance(excuse_unavoidable, bool):
             raise InvalidArgument(f"excuse_unavoidable={excuse_unavoidable!r} must be a bool")
@@ -74,6 +81,9 @@ class AvoidedStaysAvoided(Relation):
             raise InvalidArgument(f"slack={slack!r} must be a number >= 0")
         if sensor is not None and not isinstance(sensor, Sensor):
             raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
+        if relevance not in ("lane", "road"):
+            raise InvalidArgument(f"relevance={relevance!r} must be 'lane' or 'road'")
+        self.relevance = relevance
         self.excuse_unavoidable = excuse_unavoidable
         self.slack = float(slack)
         self.sensor = sensor
@@ -98,7 +108,7 @@ class AvoidedStaysAvoided(Relation):
         avoidability: Avoidability | None = None
         if self.excuse_unavoidable:
             avoidability = physically_avoidable(
-                followup.scenario, slack=self.slack, sensor=self.sensor
+                followup.scenario, slack=self.slack, relevance=self.relevance, sensor=self.sensor
             )
             details["physically_avoidable"] = avoidability.avoidable
             details["relevant_time"] = avoidability.relevant_time
@@ -115,13 +125,19 @@ class AvoidedStaysAvoided(Relation):
 
 
 def avoided_stays_avoided(
-    *, excuse_unavoidable: bool = True, slack: float = 0.1, sensor: Sensor | None = None
+    *,
+    excuse_unavoidable: bool = True,
+    slack: float = 0.1,
+    relevance: Literal["lane", "road"] = "road",
+    sensor: Sensor | None = None,
 ) -> AvoidedStaysAvoided:
     """Iqbal's MR: an avoided collision stays avoided when the car's speed changes.
 
     See :class:`AvoidedStaysAvoided`.
     """
-    return AvoidedStaysAvoided(excuse_unavoidable=excuse_unavoidable, slack=slack, sensor=sensor)
+    return AvoidedStaysAvoided(
+        excuse_unavoidable=excuse_unavoidable, slack=slack, relevance=relevance, sensor=sensor
+    )
 
 
 class ImpactSpeedMonotone(Relation):

@@ -63,6 +63,18 @@ def test_most_important_object_uses_the_real_lane_or_a_fixed_corridor() -> None:
     assert mutant.most_important_object(observe(10.0, parked)) is None
 
 
+def test_reference_takes_pedestrians_from_the_whole_road_but_vehicles_from_its_lane() -> None:
+    # The car in the right lane of a 6 m two-lane street: lane (-1.5, 1.5), road (-1.5, 4.5).
+    observation = Observation(0.0, 0.01, 10.0, 4.358, 1.815, -1.5, 1.5, -1.5, 4.5, ())
+    far_walker = walker(20.0, 4.0, vd=-1.4)
+    oncoming = Track(3, "vehicle", 15.0, 3.0, -10.0, 0.0, 4.4, 1.8)
+    reference = reference_controller()
+    assert reference.in_corridor(far_walker, observation)
+    assert not reference.in_corridor(oncoming, observation)
+    assert not AEBController(pedestrian_region="lane").in_corridor(far_walker, observation)
+    assert not mutant_fixed_lane().in_corridor(far_walker, observation)
+
+
 def test_receding_objects_have_no_ttc() -> None:
     controller = reference_controller()
     command = controller(observe(5.0, walker(3.0, 0.0, vd=0.0, vs=6.0)))
@@ -88,6 +100,8 @@ def test_mutant_collides_where_the_reference_stops_and_braking_could() -> None:
 def test_lane_width_is_validated() -> None:
     with pytest.raises(InvalidArgument, match="lane_width"):
         AEBController(lane_width=-3.6)
+    with pytest.raises(InvalidArgument, match="pedestrian_region"):
+        AEBController(pedestrian_region="sidewalk")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="fb_deceleration"):
         AEBController(fb_deceleration=0)
     assert euro_ncap_road().lane_width == 10.0

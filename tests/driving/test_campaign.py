@@ -53,6 +53,10 @@ def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path)
         # Whatever else happens, the reference never misses an avoidable collision.
         if row.controller == "reference":
             assert row.avoidable_violations == ()
+    # On the real streets (6 m, two 3 m lanes) the far-side adult crosses the oncoming lane
+    # first: the reference brakes as it steps onto the road, the mutant only 1.8 m out.
+    street_mutants = [row for row in rows[2:] if row.controller == "3.6 m lane mutant"]
+    assert all(len(row.avoidable_violations) == 4 for row in street_mutants)
     ncap_mutant = rows[1]
     assert [c.speed_kmh for c in ncap_mutant.avoidable_violations] == [60, 70, 80, 90]
     assert ncap_mutant.lowest_violating_speed_kmh == 60

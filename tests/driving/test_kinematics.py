@@ -207,6 +207,18 @@ def test_physically_avoidable_waits_for_relevance() -> None:
     assert "avoidable" in result.describe()
 
 
+def test_relevance_on_the_road_or_only_in_the_lane() -> None:
+    # A far-side adult on a 6 m two-lane street steps onto the road 4.5 m from the car's
+    # path but enters its lane only 1.5 m from it.
+    street = RoadGeometry.straight(width=6.0, lanes=2)
+    scenario = euro_ncap("CPFA-50", ego_speed_kmh=20, road=street).with_ego_speed(80)
+    road, lane = physically_avoidable(scenario), physically_avoidable(scenario, relevance="lane")
+    assert road.avoidable and not lane.avoidable
+    assert road.relevant_time < lane.relevant_time
+    with pytest.raises(InvalidArgument, match="relevance"):
+        physically_avoidable(scenario, relevance="kerb")  # type: ignore[arg-type]
+
+
 def test_controller_contract_is_checked() -> None:
     scenario = euro_ncap("CPNA-25")
     with pytest.raises(InvalidArgument, match="deceleration"):
