@@ -17,8 +17,9 @@ Model
   it exists.
 
 A run ends at the first contact (refined by bisection inside the step, so the impact time
-and speed do not depend on the step size), when the car stands still after braking, once
-the car has passed every pedestrian, or after ``time_to_collision_point + 5 s``.
+and speed do not depend on the step size), when the car stands still after braking (as
+in the protocol, a dummy walking on into a stopped car is no impact; dummies never
+react), once the car has passed every pedestrian, or after ``time_to_collision_point + 5 s``.
 
 Contacts are classified by the face of the car that was hit: ``front``, ``side`` (left or
 right) or ``rear``.
