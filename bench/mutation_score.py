@@ -1,0 +1,214 @@
+"""Mutation score of the LiDAR relation library against faulty perception pipelines.
+
+Every relation of :func:`pytest_metamorphic.lidar.relations.lidar_relations` (plus
+rotation by any angle) runs as an ``@metamorphic`` Hypothesis test against the reference
+pipeline and against each mutant of :mod:`pytest_metamorphic.lidar.perception.mutants`,
+at the default budgets: Hypothesis' default ``max_examples`` (100), the engine's default
+2 follow-ups per source, the relations' default noise sizes; derandomized, so the run is
+reproducible. A mutant is *killed* by a relation when the test fails with a
+``MetamorphicViolation``; the falsifying example Hypothesis shrank to is printed.
+
+Sources: the six labelled KITTI sweeps (``../shared/data/kitti_openpcdet``, ROI = the
+camera wedge KITTI labels cover) and three rendered HDL-64E street scenes (a straight
+road and a junction, with cars at several headings, pedestrians, a cyclist, and trees,
+poles and buildings off the road). Rotation by any angle runs on the rendered scenes only:
+the reference pipeline is not rotation-equivariant at arbitrary angles on cluttered real
+sweeps (see ``rotation_equivariance``). A relation that the reference pipeline violates
+would be unsound; its kills would not count (none does).
+
+    python bench/mutation_score.py [--max-examples N] [--mutants a,b,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from pytest_metamorphic import MetamorphicViolation, metamorphic  # noqa: E402
+from pytest_metamorphic.core.engine import MetamorphicRelation  # noqa: E402
+from pytest_metamorphic.lidar.evaluation import kitti_label_region  # noqa: E402
+from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
+from pytest_metamorphic.lidar.obstacles import Box  # noqa: E402
+from pytest_metamorphic.lidar.perception import ReferencePerception  # noqa: E402
+from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant  # noqa: E402
+from pytest_metamorphic.lidar.relations import (  # noqa: E402
+    lidar_relations,
+    rotation_equivariance,
+)
+from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
+from pytest_metamorphic.lidar.scene import (  # noqa: E402
+    BackgroundObject,
+    Obstacle,
+    Scene,
+    render,
+)
+from pytest_metamorphic.strategies.frames import frames  # noqa: E402
+
+DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
+KITTI = DATA / "kitti_openpcdet" / "training"
+GROUND_Z = -1.73
+EXAMPLE_LINES = 14
+
+
+def _standing(x: float, y: float, size: tuple[float, float, float], yaw: float, label: str) -> Box:
+    return Box((x, y, GROUND_Z + size[2] / 2), size, yaw, label)  # type: ignore[arg-type]
+
+
+def rendered_scenes() -> list[Frame]:
+    """Three deterministic street scenes, rendered once."""
+    road = ROI.from_polygons([[(-30.0, -6.0), (60.0, -6.0), (60.0, 6.0), (-30.0, 6.0)]])
+    junction = ROI.from_polygons(
+        [
+            [(-30.0, -5.0), (60.0, -5.0), (60.0, 5.0), (-30.0, 5.0)],
+            [(20.0, -40.0), (30.0, -40.0), (30.0, 40.0), (20.0, 40.0)],
+        ]
+    )
+    clutter = (
+        BackgroundObject("building", (15.0, 16.0), (12.0, 6.0, 8.0)),
+        BackgroundObject("tree", (8.0, -9.0), (3.0, 3.0, 6.0)),
+        BackgroundObject("pole", (4.0, -7.5), (0.3, 0.3, 5.0)),
+    )
+    scenes = [
+        Scene(
+            roi=road,
+            obstacles=(
+                Obstacle(_standing(12.0, -2.5, (4.3, 1.8, 1.5), 0.35, "car")),
+                Obstacle(_standing(26.0, 2.5, (4.0, 1.7, 1.5), -0.2, "car")),
+                Obstacle(_standing(8.0, 3.0, (0.6, 0.5, 1.75), 0.0, "pedestrian")),
+                Obstacle(_standing(18.0, -1.0, (1.8, 0.6, 1.7), 1.2, "cyclist")),
+            ),
+            background=clutter,
+            name="road",
+        ),
+        Scene(
+            roi=junction,
+            obstacles=(
+                Obstacle(_standing(25.0, 12.0, (4.4, 1.8, 1.5), 1.9, "car")),
+                Obstacle(_standing(14.0, 1.5, (4.2, 1.8, 1.4), 0.6, "car")),
+                Obstacle(_standing(24.0, -9.0, (0.7, 0.6, 1.8), 0.3, "pedestrian")),
+            ),
+            background=clutter,
+            name="junction",
+        ),
+        Scene(
+            roi=road,
+            obstacles=(
+                Obstacle(_standing(10.0, 2.0, (4.5, 1.9, 1.6), -0.7, "car")),
+                Obstacle(_standing(20.0, -3.0, (1.7, 0.6, 1.7), 2.5, "cyclist")),
+                Obstacle(_standing(32.0, 0.0, (0.6, 0.6, 1.7), 0.0, "pedestrian")),
+            ),
+            background=clutter[:1],
+            name="road-2",
+        ),
+    ]
+    return [render(scene) for scene in scenes]
+
+
+def run_relation(
+    system: Callable[[Any], Any], relation: MetamorphicRelation, source: Any, examples: int
+) -> tuple[str, str]:
+    """('ok' | 'killed' | 'error', falsifying example or error text)."""
+
+    @settings(
+        max_examples=examples,
+        database=None,
+        derandomize=True,
+        deadline=None,
+        suppress_health_check=list(HealthCheck),
+        print_blob=False,
+    )
+    @metamorphic(source=source, relations=[relation])
+    def test(frame: Frame) -> Any:
+        return system(frame)
+
+    try:
+        test()
+    except MetamorphicViolation as violation:
+        notes = [n for n in getattr(violation, "__notes__", []) if n.strip()]
+        return "killed", "\n".join([*str(violation).splitlines(), *notes])
+    except Exception as error:  # a crash is reported, not counted as a kill
+        return "error", f"{type(error).__name__}: {error}"
+    return "ok", ""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--max-examples", type=int, default=100)
+    parser.add_argument("--mutants", default=",".join(MUTANTS))
+    args = parser.parse_args()
+    names = [name for name in args.mutants.split(",") if name]
+
+    if not KITTI.is_dir():
+        sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
+    synthetic = st.sampled_from(rendered_scenes())
+    real = frames(str(KITTI), roi=kitti_label_region(), labels=False, cache_size=6)
+    both = st.one_of(real, synthetic)
+    suite = [(relation, both) for relation in lidar_relations()]
+    suite.append((rotation_equivariance(angles="any"), synthetic))
+    short = [f"R{i + 1}" for i in range(len(suite))]
+
+    systems = {"reference": ReferencePerception(), **{name: mutant(name) for name in names}}
+    results: dict[str, list[tuple[str, str]]] = {}
+    started = time.perf_counter()
+    for label, system in systems.items():
+        began = time.perf_counter()
+        results[label] = [
+            run_relation(system, relation, source, args.max_examples)
+            for relation, source in suite
+        ]
+        marks = " ".join(
+            f"{code}:{status}" for code, (status, _) in zip(short, results[label], strict=True)
+        )
+        print(f"[{time.perf_counter() - began:6.1f}s] {label}: {marks}", flush=True)
+
+    unsound = {i for i, (status, _) in enumerate(results["reference"]) if status != "ok"}
+    print("\nRelations:")
+    for code, (relation, _) in zip(short, suite, strict=True):
+        print(f"  {code}: {relation.name}")
+    print()
+    print(f"{'mutant':<26}" + "".join(f"{code:>4}" for code in short) + "  killed")
+    killed_count = 0
+    for label in systems:
+        row = results[label]
+        cells = [{"ok": ".", "killed": "K", "error": "E"}[status] for status, _ in row]
+        kills = [i for i, (status, _) in enumerate(row) if status == "killed" and i not in unsound]
+        if label != "reference" and kills:
+            killed_count += 1
+        verdict = "" if label == "reference" else ("yes" if kills else "NO")
+        print(f"{label:<26}" + "".join(f"{c:>4}" for c in cells) + f"  {verdict}")
+    if unsound:
+        print(f"\nthe reference violates {sorted(short[i] for i in unsound)}: not counted")
+    print("\nMinimal failing examples (shrunk by Hypothesis):")
+    for label in names:
+        for code, (status, text) in zip(short, results[label], strict=True):
+            if status == "killed":
+                lines = text.splitlines()
+                shown = lines[:EXAMPLE_LINES]
+                if len(lines) > EXAMPLE_LINES:
+                    shown.append(f"... {len(lines) - EXAMPLE_LINES} more lines")
+                print(f"\n  {label} x {code}:\n      " + "\n      ".join(shown))
+            elif status == "error":
+                print(f"\n  {label} x {code}: ERROR {text[:300]}")
+    total = len(names)
+    score = killed_count / total if total else 0.0
+    elapsed = time.perf_counter() - started
+    print(f"\nmutation score {killed_count}/{total} = {score:.2f} in {elapsed:.0f} s")
+    print(
+        f"RESULT mutation_score={score:.4f} mutants={total} killed={killed_count} "
+        f"relations={len(suite)} reference_violations={len(unsound)} seconds={elapsed:.0f}"
+    )
+
+
+if __name__ == "__main__":
+    main()

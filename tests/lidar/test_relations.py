@@ -1,0 +1,247 @@
+"""The LiDAR relation library: the reference pipeline satisfies every relation on real and
+rendered frames, the relations catch the faults they target, bad arguments are named."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import conftest
+from pytest_metamorphic import InvalidArgument, metamorphic
+from pytest_metamorphic.core.relations import CheckContext
+from pytest_metamorphic.lidar.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.io import read_bin
+from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.perception import ReferencePerception
+from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant
+from pytest_metamorphic.lidar.perturb import (
+    DuplicatePoints,
+    NoiseOutsideROI,
+    PermutePoints,
+    RotateAboutSensor,
+)
+from pytest_metamorphic.lidar.relations import (
+    RotatedObstacles,
+    duplication_invariance,
+    lidar_relations,
+    mr1_subset,
+    outside_removal,
+    rotation_equivariance,
+)
+from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
+from pytest_metamorphic.strategies.frames import frames
+
+KITTI = conftest.SHARED_DATA / "kitti_openpcdet" / "training"
+needs_kitti = pytest.mark.skipif(not KITTI.is_dir(), reason=f"shared test data not found: {KITTI}")
+GROUND_Z = -1.73
+ROAD = ROI.from_polygons([[(-30.0, -6.0), (60.0, -6.0), (60.0, 6.0), (-30.0, 6.0)]])
+SUT = ReferencePerception()
+
+
+def _standing(x: float, y: float, size: tuple[float, float, float], yaw: float, label: str) -> Box:
+    return Box((x, y, GROUND_Z + size[2] / 2), size, yaw, label)  # type: ignore[arg-type]
+
+
+@functools.cache
+def street() -> Frame:
+    scene = Scene(
+        roi=ROAD,
+        obstacles=(
+            Obstacle(_standing(12.0, -2.5, (4.3, 1.8, 1.5), 0.35, "car")),
+            Obstacle(_standing(8.0, 3.0, (0.6, 0.5, 1.75), 0.0, "pedestrian")),
+            Obstacle(_standing(18.0, 1.0, (1.8, 0.6, 1.7), 1.2, "cyclist")),
+        ),
+        background=(
+            BackgroundObject("building", (15.0, 16.0), (12.0, 6.0, 8.0)),
+            BackgroundObject("tree", (8.0, -9.0), (3.0, 3.0, 6.0)),
+        ),
+        name="street",
+    )
+    return render(scene)
+
+
+@functools.cache
+def kitti_frame(index: int = 3) -> Frame:
+    path = conftest.shared_data_path("kitti_openpcdet", "training", "velodyne", f"{index:06d}.bin")
+    cloud = read_bin(path)
+    return Frame(cloud, roi=kitti_label_region())
+
+
+QUICK = settings(
+    max_examples=4, database=None, deadline=None, suppress_health_check=list(HealthCheck)
+)
+
+
+@needs_kitti
+@QUICK
+@metamorphic(
+    source=st.deferred(lambda: frames(str(KITTI), roi=kitti_label_region(), labels=False)),
+    relations=lidar_relations(),
+    followups=1,
+)
+def test_reference_satisfies_every_relation_on_kitti_sweeps(frame: Frame) -> list[Box]:
+    return SUT(frame)
+
+
+@QUICK
+@metamorphic(
+    source=st.deferred(lambda: st.just(street())),
+    relations=[*lidar_relations(), rotation_equivariance(angles="any")],
+    followups=1,
+)
+def test_reference_satisfies_every_relation_on_a_rendered_street(frame: Frame) -> list[Box]:
+    return SUT(frame)
+
+
+# -- each relation catches the fault it targets (fixed follow-ups, no search) --------------------
+
+
+def _check(relation, frame: Frame, followup: Frame, params: dict, system) -> bool:
+    context = CheckContext(frame, followup, params, 0)
+    return relation.relation.check(system(frame), system(followup), context).holds
+
+
+@needs_kitti
+def test_outside_noise_catches_the_use_full_cloud_fault() -> None:
+    # 1000 points, as in the paper's largest setting; a low one lands next to the ROI.
+    frame = kitti_frame(0)
+    noise = NoiseOutsideROI.sample(frame, 1000, rng=np.random.default_rng(7))
+    followup = noise.apply(frame)
+    equal_relation = lidar_relations()[2]
+    assert _check(equal_relation, frame, followup, noise.params(), SUT)
+    assert not _check(equal_relation, frame, followup, noise.params(), mutant("full_cloud_ground"))
+
+
+@needs_kitti
+def test_outside_removal_catches_the_off_by_one_roi() -> None:
+    frame = kitti_frame(3)
+    outside = ~frame.roi.contains(frame.cloud.points)
+    followup = frame.with_cloud(frame.cloud[~outside])
+    relation = outside_removal()
+    assert _check(relation, frame, followup, {}, SUT)
+    assert not _check(relation, frame, followup, {}, mutant("roi_off_by_one"))
+
+
+@needs_kitti
+def test_permutation_catches_order_dependent_voxels() -> None:
+    frame = kitti_frame(3)
+    permutation = PermutePoints(5)
+    followup = permutation.apply(frame)
+    relation = lidar_relations()[4]
+    assert _check(relation, frame, followup, {}, SUT)
+    assert not _check(relation, frame, followup, {}, mutant("order_dependent_voxels"))
+
+
+@needs_kitti
+def test_duplication_catches_raw_point_counts() -> None:
+    frame = kitti_frame(1)  # clutter: many objects of 2-3 cells and a few points
+    duplicate = DuplicatePoints(np.flatnonzero(frame.roi.contains(frame.cloud.points)))
+    followup = duplicate.apply(frame)
+    relation = duplication_invariance()
+    assert _check(relation, frame, followup, {}, SUT)
+    assert not _check(relation, frame, followup, {}, mutant("raw_point_count"))
+
+
+def test_rotation_catches_axis_aligned_boxes() -> None:
+    frame = street()
+    rotation = RotateAboutSensor(math.radians(-20.0))
+    followup = rotation.apply(frame)
+    relation = rotation_equivariance(angles="any")
+    assert _check(relation, frame, followup, rotation.params(), SUT)
+    assert not _check(relation, frame, followup, rotation.params(), mutant("axis_aligned_boxes"))
+
+
+@pytest.mark.parametrize("degrees", [90, 180, 270])
+def test_quarter_turns_are_exact_for_the_reference(degrees: int) -> None:
+    frame = street()
+    rotation = RotateAboutSensor(math.radians(degrees))
+    assert _check(rotation_equivariance(), frame, rotation.apply(frame), rotation.params(), SUT)
+
+
+# -- the rotation check itself ---------------------------------------------------------------------
+
+
+def _car(x: float, y: float, yaw: float = 0.3, label: str = "car", points: int = 100) -> Box:
+    return Box((x, y, -1.0), (4.0, 1.8, 1.5), yaw, label, points=points)  # type: ignore[arg-type]
+
+
+def test_rotated_obstacles_compares_turned_boxes() -> None:
+    relation = RotatedObstacles(
+        center_tolerance=0.1, size_tolerance=0.1, yaw_tolerance=2.0, min_points=10,
+        boundary_margin=0.0,
+    )
+    source = [_car(10.0, 0.0)]
+    turned = [source[0].rotated(math.radians(90))]
+    context = CheckContext(params={"theta_deg": 90.0})
+    assert relation.check(source, turned, context)
+    # The box did not turn:
+    verdict = relation.check(source, source, context)
+    assert not verdict
+    assert "car at (0.0, 10.0) (turned) has no match" in verdict.explanation
+    assert "follow-up car at (10.0, 0.0) has no source counterpart" in verdict.explanation
+    # A heading off by 180 degrees is the same box; a changed class is not.
+    flipped = [Box(turned[0].center, turned[0].size, turned[0].yaw + math.pi, "car", points=100)]
+    assert relation.check(source, flipped, context)
+    assert not relation.check(source, [_car(0.0, 10.0, math.radians(90.3), "pedestrian")], context)
+
+
+def test_rotated_obstacles_exempts_small_unknown_and_edge_objects() -> None:
+    relation = RotatedObstacles(
+        center_tolerance=0.1, size_tolerance=0.1, yaw_tolerance=2.0, min_points=10,
+        boundary_margin=0.5,
+    )
+    frame = Frame(street().cloud, roi=ROAD)
+    context = CheckContext(followup_input=frame, params={"theta_deg": 0.0})
+    few = [_car(20.0, 0.0, points=5)]
+    unknown = [_car(20.0, 0.0, label="unknown")]
+    at_edge = [_car(20.0, 5.0)]  # footprint crosses the road's edge at y = 6
+    for boxes in (few, unknown, at_edge):
+        assert relation.check(boxes, [], context)
+    assert not relation.check([_car(20.0, 0.0)], [], context)
+    with pytest.raises(InvalidArgument, match="theta_deg"):
+        relation.check([], [], CheckContext())
+
+
+@settings(max_examples=10, database=None, deadline=None)
+@given(st.deferred(lambda: outside_removal(max_size=50).followup(street())))
+def test_outside_removal_removes_only_outside_points(item) -> None:
+    frame = street()
+    inside_points = frame.cloud.points[ROAD.contains(frame.cloud.points)]
+    kept = item.input.cloud.points
+    assert np.array_equal(kept[ROAD.contains(kept)], inside_points)
+    assert item.params["removed"] == len(frame.cloud) - len(kept) > 0
+
+
+def test_mutants_are_selectable_by_name_and_differ_from_the_reference() -> None:
+    assert len(MUTANTS) >= 10
+    frame = street()
+    expected = SUT(frame)
+    for name in MUTANTS:
+        system = mutant(name)
+        assert system.name == name
+        assert isinstance(system(frame), list)
+    with pytest.raises(InvalidArgument, match="unknown mutant 'nope'"):
+        mutant("nope")
+    assert expected == SUT(frame)
+
+
+def test_bad_arguments_are_named() -> None:
+    with pytest.raises(InvalidArgument, match="max_size"):
+        mr1_subset(max_size=0)
+    with pytest.raises(InvalidArgument, match="n="):
+        mr1_subset(n=-3)
+    with pytest.raises(InvalidArgument, match="method"):
+        outside_removal(method="bitmap")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="angles"):
+        rotation_equivariance(angles="eighths")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="center_tolerance"):
+        rotation_equivariance(center_tolerance=-1.0)
+    with pytest.raises(InvalidArgument, match="need Frame source inputs"):
+        mr1_subset().followup(np.zeros((3, 4)))
