@@ -57,6 +57,17 @@ def test_batch_builder_matches_single_builder(apollo_clusters: list[np.ndarray])
         _assert_same_box(single, min_box(cluster))
 
 
+def test_nearest_start_gives_apollos_boxes_up_to_the_heading_sign(
+    apollo_clusters: list[np.ndarray],
+) -> None:
+    for points in apollo_clusters:
+        apollo, nearest = min_box(points), min_box(points, start="nearest")
+        assert (nearest.length, nearest.width) == pytest.approx(
+            (apollo.length, apollo.width), abs=1e-9
+        )
+        assert abs(math.remainder(nearest.yaw - apollo.yaw, math.pi)) < 1e-9
+
+
 def test_edges_facing_away_from_the_sensor_are_not_tried(
     apollo_clusters: list[np.ndarray],
 ) -> None:
@@ -214,3 +225,22 @@ def test_bad_labels_and_ref_center_are_rejected() -> None:
         min_boxes(points, [0, -1, 0, 0])
     with pytest.raises(InvalidArgument, match="ref_center"):
         min_box(points, ref_center=(0.0, 0.0))
+    with pytest.raises(InvalidArgument, match="start"):
+        min_box(points, start="first")  # type: ignore[arg-type]
+
+
+@settings(max_examples=60)
+@given(clusters(max_points=80), st.sampled_from([1, 2, 3]))
+def test_nearest_start_boxes_turn_with_the_scene(points: np.ndarray, quarter_turns: int) -> None:
+    turned = points.copy()
+    for _ in range(quarter_turns):  # exact in float32: (x, y) -> (-y, x)
+        turned[:, 0], turned[:, 1] = -turned[:, 1].copy(), turned[:, 0].copy()
+    a = min_box(points, start="nearest")
+    b = min_box(turned, start="nearest")
+    theta = quarter_turns * math.pi / 2
+    c, s = math.cos(theta), math.sin(theta)
+    x, y, _ = a.center
+    assert b.center[:2] == pytest.approx((c * x - s * y, s * x + c * y), abs=1e-6)
+    assert (b.length, b.width) == pytest.approx((a.length, a.width), abs=1e-6)
+    if a.length - a.width > 1e-3:
+        assert abs(math.remainder(b.yaw - a.yaw - theta, math.pi)) < 1e-6

@@ -147,6 +147,7 @@ def test_bad_input_names_the_argument() -> None:
         ({"max_height": 0.0}, "max_height"),
         ({"min_cells": 0}, "min_cells"),
         ({"sensor": (0.0, 0.0)}, "sensor"),
+        ({"hull_start": "first"}, "hull_start"),
         ({"ground": None}, None),
     ],
 )
