@@ -29,6 +29,7 @@ import bisect
 import contextlib
 import functools
 import heapq
+import io
 import math
 import os
 from collections.abc import Iterable, Iterator
@@ -91,6 +92,34 @@ def _typestore(ros1: bool) -> Any:
 # -- reading ----------------------------------------------------------------------------
 
 
+class _CappedReader(io.BufferedReader):
+    """A binary file whose ``read(n)`` never asks for more bytes than are left.
+
+    rosbags trusts the length fields it reads (``src.read(size)``), and Python allocates
+    ``size`` bytes before reading; a corrupt 4-byte length would cost gigabytes before
+    the short read is noticed. Capping the request changes no result: the read comes
+    back short either way and rosbags reports the truncation.
+    """
+
+    def __init__(self, raw: io.FileIO) -> None:
+        super().__init__(raw)
+        self._end = os.fstat(raw.fileno()).st_size
+
+    def read(self, size: int | None = -1) -> bytes:
+        if size is not None and size > 0:
+            size = min(size, max(self._end - self.tell(), 0))
+        return super().read(size)
+
+
+class _CappedPath(type(Path())):  # type: ignore[misc]
+    """The path handed to rosbags: opened for binary reading, it gives a _CappedReader."""
+
+    def open(self, mode: str = "r", *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+        if mode == "rb" and not args and not kwargs:
+            return _CappedReader(io.FileIO(self, "rb"))
+        return super().open(mode, *args, **kwargs)
+
+
 @contextlib.contextmanager
 def _open(path: Path) -> Iterator[Any]:
     """An open rosbags AnyReader; every parser failure becomes a DataError."""
@@ -100,7 +129,7 @@ def _open(path: Path) -> Iterator[Any]:
         raise DataError("no such bag (file or ROS 2 bag folder)", path=path)
     with wrap_errors(path, "bag"):
         try:
-            reader = AnyReader([path], default_typestore=_typestore(ros1=False))
+            reader = AnyReader([_CappedPath(path)], default_typestore=_typestore(ros1=False))
             reader.open()
         except Exception as error:
             if "Profile is not ros2" in str(error):
