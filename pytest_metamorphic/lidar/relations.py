@@ -64,8 +64,6 @@ __all__ = [
     "rotation_equivariance",
 ]
 
-PAPER_NOISE_SIZES = (10, 100, 1000)
-
 
 def _noise(n: int | None, max_size: int) -> Any:
     if n is not None:

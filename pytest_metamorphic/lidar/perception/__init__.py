@@ -8,6 +8,7 @@ mutation testing live in :mod:`.mutants`.
 from __future__ import annotations
 
 from pytest_metamorphic.lidar.perception.minbox import MinBox, min_box, min_boxes
+from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant
 from pytest_metamorphic.lidar.perception.pipeline import (
     PerceptionParams,
     ReferencePerception,
@@ -15,10 +16,12 @@ from pytest_metamorphic.lidar.perception.pipeline import (
 )
 
 __all__ = [
+    "MUTANTS",
     "MinBox",
     "PerceptionParams",
     "ReferencePerception",
     "Stages",
     "min_box",
     "min_boxes",
+    "mutant",
 ]

@@ -15,16 +15,26 @@ Apollo's LiDAR obstacle perception, which Zhou & Sun tested, without learned wei
    Objects with fewer than ``min_cells`` cells, or whose top is lower than
    ``min_height`` above the ground, are dropped.
 4. **MinBox** (:mod:`.minbox`): Apollo's box builder on each object's points, judged
-   from the sensor at the origin.
+   from the sensor at the origin; the hull walk starts at the vertex nearest the sensor
+   (``hull_start``) so that boxes turn with the scene. Box height spans the object's
+   points.
 5. **Classification** (:mod:`.classify`): car / cyclist / pedestrian / unknown from the
-   box footprint and the height of the object's top and bottom above the ground.
+   box footprint, the points' vertical extent, and the height of the object's top and
+   bottom above the ground.
 
 The output is a list of :class:`~pytest_metamorphic.lidar.obstacles.Box`, sorted by
 centre, so that equal inputs give equal lists. The pipeline is deterministic and depends
 only on the *set* of points in the ROI: point order, repeated points and points outside
 the ROI do not change it (the relations of :mod:`pytest_metamorphic.lidar.relations`
 check exactly that). Grids are anchored at the sensor origin, so adding or removing
-far-away points cannot shift a cell border.
+far-away points cannot shift a cell border, and a quarter turn of the scene about the
+sensor maps every cell onto a cell: the boxes turn with it exactly (except next to the
+ROI's edges, whose bitmap is rasterised afresh). Turns by other angles move cell borders
+across objects, so boxes change by up to tens of centimetres and borderline objects can
+split or change class.
+
+Speed: about 10 ms per 120k-point KITTI sweep on one core with the camera-wedge ROI
+(``bench/perception.py``); every stage is vectorised except MinBox's per-object hull walk.
 """
 
 from __future__ import annotations
