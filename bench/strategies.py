@@ -1,0 +1,178 @@
+"""Strategy building blocks: ROI containment, MR1 noise injection, HDL-64E scene rendering.
+
+* containment of a ~120k-point HDL-64E sweep in Apollo's real ROI-filter polygons
+  (``../shared/data/apollo/hdmap_roi_filter/poly_mask_ut.poly``; a generated crossroads
+  when the data is absent): the 0.25 m bitmap lookup (what Apollo does), the exact test,
+  and matplotlib's ``Path.contains_points`` as the baseline, all measured in this run;
+* MR1 noise, n = 1000 points outside the ROI, built from seeds and appended to the frame;
+  the Hypothesis draw of the 1000 seeds is shown separately;
+* rendering a ~120k-point street scene (4 obstacles, 3 background objects) with Embree,
+  and with the numpy fallback for comparison.
+
+Times are medians of repeated runs (the machine may be shared; the minimum is shown too).
+
+    python bench/strategies.py [--repeat N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from hypothesis import Phase, find, settings
+from matplotlib.path import Path as MplPath
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS, Box  # noqa: E402
+from pytest_metamorphic.lidar.perturb import NoiseOutsideROI  # noqa: E402
+from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
+from pytest_metamorphic.lidar.scene import (  # noqa: E402
+    BackgroundObject,
+    Obstacle,
+    Scene,
+    default_engine,
+    render,
+)
+from pytest_metamorphic.strategies.noise import noise_outside_roi  # noqa: E402
+
+APOLLO_POLY = ROOT.parent / "shared" / "data" / "apollo" / "hdmap_roi_filter" / "poly_mask_ut.poly"
+
+
+def timed(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
+    """(median, min) wall time in milliseconds over ``repeat`` calls, after one warm-up."""
+    fn()
+    samples = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        samples.append((time.perf_counter() - start) * 1e3)
+    return statistics.median(samples), min(samples)
+
+
+def street(roi: ROI) -> Scene:
+    h = 1.73
+
+    def on_ground(x: float, y: float, label: str, yaw: float = 0.0) -> Obstacle:
+        size = SIZE_PRIORS[label].mean
+        return Obstacle(Box((x, y, -h + size[2] / 2), size, yaw, label))
+
+    return Scene(
+        sensor_height=h,
+        roi=roi,
+        obstacles=(
+            on_ground(12, 2, "car", 0.2),
+            on_ground(9, -3, "pedestrian"),
+            on_ground(20, -1, "cyclist", 1.0),
+            on_ground(30, 3, "car"),
+        ),
+        background=(
+            BackgroundObject("building", (25, 22), (14, 10, 8), yaw=0.3),
+            BackgroundObject("pole", (15, -9), (0.3, 0.3, 6)),
+            BackgroundObject("tree", (30, -14), (4, 4, 7)),
+        ),
+        name="bench street",
+    )
+
+
+def load_roi() -> tuple[ROI, str]:
+    if APOLLO_POLY.exists():
+        return ROI.from_apollo_poly(
+            APOLLO_POLY
+        ), "Apollo poly_mask_ut.poly (2 polygons, 161 vertices)"
+    arms = [
+        [[-120, -6], [120, -6], [120, 6], [-120, 6]],
+        [[-6, -120], [6, -120], [6, 120], [-6, 120]],
+    ]
+    return ROI.from_polygons(arms), "generated crossroads (shared data absent)"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=15)
+    args = parser.parse_args()
+    repeat = max(3, args.repeat)
+
+    roi, roi_name = load_roi()
+    road = ROI.from_polygons([[[-120, -7], [120, -7], [120, 7], [-120, 7]]])
+    frame = render(street(road))
+    xy = frame.cloud.points[:, :2]
+    n_points = len(xy)
+
+    # -- containment ------------------------------------------------------------------------
+    roi.contains(xy)  # build and cache the bitmaps (Apollo builds its bitmap once per frame)
+    roi.contains(xy, method="exact")
+    paths = [MplPath(polygon) for polygon in roi.polygons]
+    xy64 = xy.astype(np.float64)
+
+    def matplotlib_baseline() -> np.ndarray:
+        inside = np.zeros(len(xy64), dtype=bool)
+        for path in paths:
+            inside |= path.contains_points(xy64)
+        return inside
+
+    exact = roi.contains(xy, method="exact")
+    assert np.array_equal(exact, matplotlib_baseline()), "exact and matplotlib disagree"
+    raster_agree = float(np.mean(roi.contains(xy) == exact))
+    raster_ms = timed(lambda: roi.contains(xy), repeat)
+    exact_ms = timed(lambda: roi.contains(xy, method="exact"), repeat)
+    mpl_ms = timed(matplotlib_baseline, repeat)
+    build_ms = timed(lambda: ROI.from_polygons(roi.polygons).bitmap, max(3, repeat // 3))
+
+    # -- noise injection -----------------------------------------------------------------------
+    seeds = np.random.default_rng(0).integers(0, 2**32, 1000)
+    NoiseOutsideROI.from_seeds(frame, seeds)  # free-cell list is cached on the ROI
+    noise_ms = timed(lambda: NoiseOutsideROI.from_seeds(frame, seeds).apply(frame), repeat)
+    # The whole follow-up through Hypothesis (draw 1000 seeds, inject, wrap), for scale.
+    followups = noise_outside_roi(frame, n=1000)
+    quick = settings(database=None, max_examples=1, phases=[Phase.generate])
+
+    def draw_followup() -> object:
+        return find(followups, lambda _: True, settings=quick)
+
+    hypothesis_ms = timed(draw_followup, max(3, repeat // 3))
+
+    # -- rendering -------------------------------------------------------------------------------
+    scene = street(road)
+    engine = default_engine()
+    render_ms = timed(lambda: render(scene), max(3, repeat // 2))
+    numpy_ms = timed(lambda: render(scene, engine="numpy"), 3)
+
+    speedup = mpl_ms[0] / raster_ms[0]
+    rows = [
+        ("ROI", "", roi_name),
+        ("points (HDL-64E render)", f"{n_points:>11}", ""),
+        (
+            "raster lookup (Apollo 0.25 m bitmap)",
+            f"{raster_ms[0]:8.2f} ms",
+            f"min {raster_ms[1]:.2f}",
+        ),
+        ("exact even-odd (grid-accelerated)", f"{exact_ms[0]:8.2f} ms", f"min {exact_ms[1]:.2f}"),
+        ("matplotlib Path.contains_points", f"{mpl_ms[0]:8.2f} ms", f"min {mpl_ms[1]:.2f}"),
+        ("raster speed-up vs matplotlib", f"{speedup:8.1f} x", "target >= 5x"),
+        ("raster == exact on these points", f"{100 * raster_agree:8.3f} %", ""),
+        ("bitmap scan conversion (once per ROI)", f"{build_ms[0]:8.2f} ms", ""),
+        ("MR1 noise n=1000: seeds -> points -> frame", f"{noise_ms[0]:8.2f} ms", "target <= 5 ms"),
+        ("  same through Hypothesis (draw + inject)", f"{hypothesis_ms[0]:8.2f} ms", "info"),
+        (f"render ~120k-point scene ({engine})", f"{render_ms[0]:8.2f} ms", "target <= 150 ms"),
+        ("render same scene (numpy fallback)", f"{numpy_ms[0]:8.2f} ms", f"{len(frame.cloud)} pts"),
+    ]
+    width = max(len(name) for name, _, _ in rows)
+    print(f"{'measurement':<{width}}  {'value':>14}  note")
+    print("-" * (width + 32))
+    for name, value, note in rows:
+        print(f"{name:<{width}}  {value:>14}  {note}")
+    print(
+        f"RESULT roi_speedup_vs_mpl={speedup:.2f} noise1000_ms={noise_ms[0]:.3f} "
+        f"render_ms={render_ms[0]:.1f}"
+    )
+
+
+if __name__ == "__main__":
+    main()
