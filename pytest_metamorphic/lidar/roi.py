@@ -398,8 +398,9 @@ class ROI:
           ``width : float`` (metres, > 0), like the roads of
           :mod:`pytest_metamorphic.driving.osm`.
 
-        Each segment becomes a rectangle and each interior vertex a 16-gon of the road's
-        half-width (round joins, flat ends). Where roads meet, their buffers overlap and
+        Each segment becomes a rectangle and each vertex a 16-gon of the road's half-width
+        (round joins and ends: every point within ``width / 2`` of the centreline, up to
+        the 16-gon's 2 % chord error). Where roads meet, their buffers overlap and
         the union covers the junction.
         """
         pieces: list[NDArray[np.float64]] = []
@@ -748,7 +749,11 @@ class ROI:
 
     def describe(self) -> str:
         """Short description for failure messages."""
-        counts = "+".join(str(len(p)) for p in self.polygons)
+        counts = (
+            "+".join(str(len(p)) for p in self.polygons)
+            if len(self.polygons) <= 6
+            else str(sum(len(p) for p in self.polygons))
+        )
         (x0, y0), (x1, y1) = self.bounds
         return (
             f"ROI({len(self.polygons)} polygon(s), {counts} vertices, "
@@ -852,7 +857,7 @@ def _road_pieces(road: Any, name: str) -> list[NDArray[np.float64]]:
         pieces.append(np.stack([a - normal, b - normal, b + normal, a + normal]))
     angles = np.linspace(0.0, 2 * math.pi, _JOIN_SIDES, endpoint=False)
     circle = np.stack([np.cos(angles), np.sin(angles)], axis=1) * half
-    pieces.extend(vertex + circle for vertex in points[1:-1])
+    pieces.extend(vertex + circle for vertex in points)
     return pieces
 
 

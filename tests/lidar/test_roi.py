@@ -332,3 +332,35 @@ def test_roads_are_buffered_centrelines():
 def test_bad_roads(road, message):
     with pytest.raises(InvalidArgument, match=message):
         ROI.from_roads([road])
+
+
+def _distance_to_polyline(xy: np.ndarray, line: np.ndarray) -> np.ndarray:
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    t = ((xy[:, None, :] - a) * ab).sum(axis=2) / np.maximum((ab**2).sum(axis=1), 1e-12)
+    closest = a + np.clip(t, 0, 1)[..., None] * ab
+    return np.sqrt(((xy[:, None, :] - closest) ** 2).sum(axis=2)).min(axis=1)
+
+
+def test_roads_from_a_real_osm_extract(shared_data):
+    osm = pytest.importorskip("pytest_metamorphic.driving.osm")
+    path = shared_data / "osm_osmnx/planet_10.068,48.135_10.071,48.137.osm"
+    roads = osm.load_roads(path, highway=osm.DRIVABLE_HIGHWAYS)
+    assert len(roads) >= 5
+    roi = ROI.from_roads(roads)
+    # Inside exactly where some road's centreline is within half its width (round joins
+    # are 16-gons, so allow 2 % of the half-width at the outer side of bends).
+    rng = np.random.default_rng(11)
+    low, high = roi.bounds
+    xy = rng.uniform(low - 10, high + 10, size=(20_000, 2))
+    slack = np.min([_distance_to_polyline(xy, r.centerline) - r.width / 2 for r in roads], axis=0)
+    exact = roi.contains(xy, method="exact")
+    assert exact[slack < -0.03 * 3.0].all()
+    assert not exact[slack > 0].any()
+    # Apollo's raster agrees with the exact union away from the edges.
+    far = roi.boundary_distance(xy) > 1.5 * roi.cell_size
+    interior_edges = slack < -0.5  # edges between overlapping pieces lie inside the union
+    agree = roi.contains(xy) == exact
+    assert agree[far | interior_edges].all()
+    for road in roads:
+        assert roi.contains(road.centerline, method="exact").all()
