@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
+import types
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -337,3 +339,19 @@ def scene_frames(
     return scene_strategy.map(
         functools.partial(render, beams=beams, seed=seed, range_noise=range_noise, engine=engine)
     )
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`scenes`.
+
+    ``pytest_metamorphic.strategies`` looks strategies up lazily by name, but importing
+    this submodule binds the package attribute ``scenes`` to the *module* (the same name
+    as the function). Calling the module forwards to the function, so ``mst.scenes(...)``
+    works whatever was imported first (as ``strategies.frames`` does).
+    """
+
+    def __call__(self, *args: Any, **kwargs: Any) -> st.SearchStrategy[Scene]:
+        return scenes(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

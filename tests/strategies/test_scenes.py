@@ -132,3 +132,13 @@ def test_bad_frame_arguments_fail_early():
         scene_frames(engine="optix")
     with pytest.raises(InvalidArgument, match="scene_strategy"):
         scene_frames(Scene())
+
+
+def test_package_lookup_gives_working_strategies():
+    from pytest_metamorphic import strategies as mst
+
+    # Whatever was looked up first, mst.scenes(...) builds the strategy.
+    assert mst.rois is not None
+    scene = find(mst.scenes(roi=ROAD, max_background=0), lambda s: True, settings=SHRINK)
+    assert scene.obstacles == ()
+    assert "noise_outside_roi" in dir(mst) and "scene_frames" in dir(mst)
