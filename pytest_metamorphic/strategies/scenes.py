@@ -161,13 +161,13 @@ _CLUTTER_RADICES = (18, 11, 11, 11)  # yaw in 10 degree steps, then size steps
 
 
 def _obstacle_radices(shape_count: int) -> tuple[int, ...]:
-    """Radices of an obstacle's "variation" integer, least significant first: heading,
-    size (length, width, height), jitter (x, y), shape. See :func:`_decode`."""
+    """Radices of an obstacle's "variation" integer, least significant first: shape,
+    heading, size (length, width, height), jitter (x, y). See :func:`_decode`."""
     return (
+        shape_count,
         2 * (180 // _YAW_STEP_DEG) + 1,
         *(2 * _SIZE_STEPS + 1,) * 3,
         *(2 * _JITTER_STEPS + 1,) * 2,
-        shape_count,
     )
 
 
@@ -202,7 +202,7 @@ def _scenes(
         while slot in taken:
             slot = (slot + 1) % len(slots)
         taken.add(slot)
-        yaw_steps, *size_steps, dx, dy, shape_index = _decode(variation, radices)
+        shape_index, yaw_steps, *size_steps, dx, dy = _decode(variation, radices)
         size = _prior_size(label, size_steps)
         x = float(slots[slot, 0]) + _JITTER_STEP * dx
         y = float(slots[slot, 1]) + _JITTER_STEP * dy

@@ -102,7 +102,7 @@ def test_user_shapes_are_drawn(tmp_path):
     scene = find(
         scenes(roi=ROAD, labels=("car",), shapes={"car": [van]}),
         lambda scene: any(o.shape == van for o in scene.obstacles),
-        settings=NO_DB,
+        settings=settings(SHRINK, max_examples=500),
     )
     assert [o.shape_name for o in scene.obstacles] == ["van"]
 
