@@ -59,20 +59,24 @@ def _check_frame(frame: Any) -> Frame:
     return frame
 
 
-def _sizes(n: Any, min_size: Any, max_size: Any) -> tuple[int, int]:
+def _sizes(n: Any, min_size: Any, max_size: Any, default_max: int = 1000) -> tuple[int, int]:
     """Resolve ``n`` (exact) or ``min_size``/``max_size`` (a range) to list bounds."""
     for name, value in (("n", n), ("min_size", min_size), ("max_size", max_size)):
-        if value is None and name in ("n", "max_size"):
+        if value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise InvalidArgument(f"{name}={value!r} must be a non-negative int")
     if n is not None:
+        if min_size is not None or max_size is not None:
+            raise InvalidArgument(
+                f"pass n={n} for an exact count or min_size/max_size for a range, not both"
+            )
         return n, n
-    if max_size is None:
-        raise InvalidArgument("pass n= for an exact number of points, or max_size=")
-    if max_size < min_size:
-        raise InvalidArgument(f"max_size={max_size} must be >= min_size={min_size}")
-    return min_size, max_size
+    low = 1 if min_size is None else min_size
+    high = max(default_max, low) if max_size is None else max_size
+    if high < low:
+        raise InvalidArgument(f"max_size={high} must be >= min_size={low}")
+    return low, high
 
 
 def _seed_lists(bounds: tuple[int, int]) -> st.SearchStrategy[list[int]]:
@@ -97,7 +101,7 @@ def noise_outside_roi(
     frame: Frame,
     n: int | None = None,
     *,
-    min_size: int = 1,
+    min_size: int | None = None,
     max_size: int | None = None,
     roi: ROI | None = None,
     max_range: float = 120.0,
@@ -111,8 +115,9 @@ def noise_outside_roi(
       The source frame; its ROI is used unless ``roi`` is given.
     n : int, optional
       Exactly this many points (the paper used 10, 100 and 1000).
-    min_size, max_size : int
-      Otherwise, a number of points in this range (shrinks toward ``min_size``).
+    min_size, max_size : int, optional
+      Otherwise, a number of points in this range, shrinking toward ``min_size``
+      (default 1 to 1000, the paper's largest n).
     roi : ROI, optional
     max_range : float
       Sensor range in metres: (x, y) are uniform over this disk minus the ROI.
@@ -145,7 +150,7 @@ def noise_inside_roi(
     frame: Frame,
     n: int | None = None,
     *,
-    min_size: int = 1,
+    min_size: int | None = None,
     max_size: int | None = None,
     roi: ROI | None = None,
     obstacles: Sequence[Box] | None = None,
@@ -177,7 +182,7 @@ def noise_inside_roi(
 
 
 def _index_lists(frame: Frame, min_size: Any, max_size: Any) -> st.SearchStrategy[list[int]]:
-    low, high = _sizes(None, min_size, max_size)
+    low, high = _sizes(None, min_size, max_size, default_max=100)
     count = len(frame.cloud)
     if count == 0:
         raise InvalidArgument(f"{frame!r} has no points to pick")
@@ -187,9 +192,10 @@ def _index_lists(frame: Frame, min_size: Any, max_size: Any) -> st.SearchStrateg
 
 
 def dropped_points(
-    frame: Frame, *, min_size: int = 1, max_size: int = 100
+    frame: Frame, *, min_size: int | None = None, max_size: int | None = None
 ) -> st.SearchStrategy[Followup]:
-    """The frame without a few of its points (distinct indices; shrinks toward fewer)."""
+    """The frame without a few of its points: 1 to 100 distinct indices by default,
+    shrinking toward fewer (and toward the first points)."""
     frame = _check_frame(frame)
     indices = _index_lists(frame, min_size, max_size)
     return _followups(
@@ -198,9 +204,10 @@ def dropped_points(
 
 
 def duplicated_points(
-    frame: Frame, *, min_size: int = 1, max_size: int = 100
+    frame: Frame, *, min_size: int | None = None, max_size: int | None = None
 ) -> st.SearchStrategy[Followup]:
-    """The frame with copies of a few of its points appended (shrinks toward fewer)."""
+    """The frame with copies of a few of its points appended (1 to 100 distinct indices
+    by default), shrinking toward fewer."""
     frame = _check_frame(frame)
     indices = _index_lists(frame, min_size, max_size)
     return _followups(

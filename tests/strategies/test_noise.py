@@ -202,8 +202,9 @@ def test_bad_arguments_fail_early():
     source = street()
     with pytest.raises(InvalidArgument, match="frame must be a Frame"):
         noise_outside_roi(source.cloud, n=10)
-    with pytest.raises(InvalidArgument, match="pass n="):
-        noise_outside_roi(source)
+    with pytest.raises(InvalidArgument, match="not both"):
+        noise_outside_roi(source, n=10, max_size=20)
+    assert noise_outside_roi(source) is not None  # 1..1000 points by default
     with pytest.raises(InvalidArgument, match="max_size=1 must be >= min_size=5"):
         noise_outside_roi(source, min_size=5, max_size=1)
     with pytest.raises(InvalidArgument, match="n=-1"):
