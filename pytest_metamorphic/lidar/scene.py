@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
+from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout, Rays
 from pytest_metamorphic.lidar.obstacles import Box, Label
 from pytest_metamorphic.lidar.roi import ROI
@@ -676,7 +677,7 @@ def render(
     range_noise: float | None = None,
     azimuth_range: tuple[float, float] | None = None,
     engine: CastEngine = "auto",
-) -> Any:
+) -> Frame:
     """Scan a scene with a spinning LiDAR; deterministic for a given scene and seed.
 
     Parameters
@@ -702,8 +703,6 @@ def render(
       ``boxes``: every obstacle's box with ``points`` set to its number of returns;
       ``source``: ``"synthetic:<scene name>"``.
     """
-    from pytest_metamorphic.lidar.frame import Frame
-
     if not isinstance(scene, Scene):
         raise InvalidArgument(f"scene must be a Scene, got {type(scene).__name__}")
     if not isinstance(beams, BeamLayout):
