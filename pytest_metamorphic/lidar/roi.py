@@ -743,6 +743,15 @@ class ROI:
             return NotImplemented
         return self.equals(other)
 
+    def __getstate__(self) -> dict[str, Any]:
+        # Bitmaps are recomputed on demand; pickles (xdist, campaigns) stay small.
+        return {name: getattr(self, name) for name in self.__slots__ if name != "_cache"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for name, value in state.items():
+            object.__setattr__(self, name, value)
+        self._cache = {}
+
     def __hash__(self) -> int:
         polygons = tuple(p.tobytes() for p in self.polygons)
         return hash((self.cell_size, self.extend_dist, self.raster_range, polygons))

@@ -364,3 +364,17 @@ def test_roads_from_a_real_osm_extract(shared_data):
     assert agree[far | interior_edges].all()
     for road in roads:
         assert roi.contains(road.centerline, method="exact").all()
+
+
+def test_pickles_without_the_cached_bitmaps():
+    import pickle
+
+    roi = ROI.from_polygons([U_SHAPE])
+    roi.contains(np.zeros((1, 2)))
+    roi.free_cells()
+    data = pickle.dumps(roi)
+    assert len(data) < 5000
+    copy = pickle.loads(data)
+    assert copy == roi
+    xy = np.random.default_rng(0).uniform(-30, 30, (1000, 2))
+    assert np.array_equal(copy.contains(xy), roi.contains(xy))
