@@ -266,6 +266,24 @@ class _InjectedPoints:
     def equals(self, other: object) -> bool:
         return type(other) is type(self) and np.array_equal(self.points, other.points)
 
+    def describe(self, width: int = 115) -> str:
+        """One line of at most ``width`` characters with as many points as fit.
+
+        Failure messages use this (they cap values at 120 characters); ``repr`` shows
+        more points.
+        """
+        head = f"{type(self).__name__} n={len(self)}: "
+        parts: list[str] = []
+        used = len(head)
+        for x, y, z, i in self.points:
+            text = f"({x:.1f}, {y:.1f}, {z:.1f}, {i:.2f})"
+            if used + len(text) + 2 + 12 > width:  # leave room for ", +NNNN more"
+                break
+            parts.append(text)
+            used += len(text) + 2
+        rest = len(self) - len(parts)
+        return head + ", ".join(parts) + (f", +{rest} more" if rest else "")
+
     def __repr__(self) -> str:
         shown = ", ".join(
             f"({x:.2f}, {y:.2f}, {z:.2f}, {i:.2f})" for x, y, z, i in self.points[:_SHOWN_POINTS]

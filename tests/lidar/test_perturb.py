@@ -118,6 +118,9 @@ def test_apply_appends_points_and_keeps_the_frame_context():
     assert noise.params()["noise_outside_roi"] is noise
     assert repr(noise).startswith("NoiseOutsideROI(n=10: [(")
     assert "... 2 more" in repr(noise)
+    assert len(noise.describe()) <= 115
+    assert noise.describe().startswith("NoiseOutsideROI n=10: (")
+    assert noise.describe().endswith(" more")
     assert isinstance(noise, Perturbation)
 
 
