@@ -94,6 +94,14 @@ def cloud_from_columns(
                 f"field {column!r} has {columns[column].shape[1]} values per point, expected 1",
                 path=name,
             )
+    dropped_zero = 0
+    if _drops_zeros(zeros, organised):
+        # Compact first: every later copy then moves only the real points.
+        keep = _not_padding(columns)
+        dropped_zero = int(keep.size - np.count_nonzero(keep))
+        if dropped_zero:
+            columns = {key: value[keep] for key, value in columns.items()}
+            points = None if points is None else points[keep]
     if points is None:
         count = len(columns["x"])
         points = np.zeros((count, 4), np.float32)
@@ -102,18 +110,13 @@ def cloud_from_columns(
             for index, column in enumerate(COLUMNS):
                 if column in columns:
                     points[:, index] = columns[column]
+    # Fields get their own native-order memory (not views of a file or message buffer),
+    # unless compaction just made fresh copies.
     fields = {
-        key: np.array(value, dtype=value.dtype.newbyteorder("="), order="C")
+        key: np.array(value, dtype=value.dtype.newbyteorder("="), order="C", copy=not dropped_zero)
         for key, value in columns.items()
         if key not in COLUMNS
     }
-    dropped_zero = 0
-    if zeros == "drop" or (zeros == "auto" and organised):
-        keep = (points[:, 0] != 0) | (points[:, 1] != 0) | (points[:, 2] != 0)
-        dropped_zero = int(len(points) - np.count_nonzero(keep))
-        if dropped_zero:
-            points = points[keep]
-            fields = {key: value[keep] for key, value in fields.items()}
     cloud = PointCloud(
         points,
         fields=fields,
@@ -127,16 +130,53 @@ def cloud_from_columns(
 
 
 def cloud_from_records(records: np.ndarray, **options: object) -> PointCloud:
-    """:func:`cloud_from_columns` for a structured array (one record per point).
+    """:func:`cloud_from_columns` for a 1-D structured array (one record per point).
 
-    The KITTI-like layout (x, y, z, intensity as float32 at offsets 0, 4, 8, 12 and nothing
-    else) is viewed without copying.
+    When x, y, z, intensity are consecutive little-endian float32 (KITTI, PCL's
+    PointXYZI, this library's writers), they are taken in one block copy of 16 bytes per
+    record, twice as fast as four strided column copies; a file holding nothing else is
+    viewed without copying at all.
     """
+    dropped_zero = 0
+    if _drops_zeros(options.get("zeros"), bool(options.get("organised"))):
+        require_xyz(records.dtype.names or (), str(options.get("name")))
+        # One gather of whole records beats compacting each column separately; taking
+        # them as opaque bytes is ~10x faster than numpy's structured boolean indexing.
+        keep = _not_padding(records)
+        dropped_zero = int(keep.size - np.count_nonzero(keep))
+        if dropped_zero:
+            opaque = np.dtype((np.void, records.dtype.itemsize))
+            records = records.view(opaque).take(np.flatnonzero(keep)).view(records.dtype)
     columns = {key: records[key] for key in records.dtype.names or ()}
-    points = None
-    if records.dtype == _FAST_LAYOUT and records.flags.c_contiguous and records.flags.writeable:
-        points = records.view("<f4").reshape(len(records), 4)
-    return cloud_from_columns(columns, points=points, **options)  # type: ignore[arg-type]
+    options = {**options, "zeros": "keep"}
+    cloud = cloud_from_columns(columns, points=_xyzi_block(records), **options)  # type: ignore[arg-type]
+    cloud.dropped_zero = dropped_zero
+    return cloud
+
+
+def _drops_zeros(zeros: object, organised: bool) -> bool:
+    return zeros == "drop" or (zeros == "auto" and organised)
+
+
+def _not_padding(columns: Mapping[str, np.ndarray] | np.ndarray) -> np.ndarray:
+    """(n,) bool: False where x = y = z = 0 exactly (NaN is not padding here)."""
+    return (columns["x"] != 0) | (columns["y"] != 0) | (columns["z"] != 0)
+
+
+def _xyzi_block(records: np.ndarray) -> np.ndarray | None:
+    fields = records.dtype.fields or {}
+    layout = [fields.get(column) for column in COLUMNS]
+    if any(item is None or item[0] != np.dtype("<f4") for item in layout):
+        return None
+    start = layout[0][1]  # type: ignore[index]
+    if [item[1] for item in layout] != [start, start + 4, start + 8, start + 12]:  # type: ignore[index]
+        return None
+    if not records.flags.c_contiguous or records.ndim != 1:
+        return None
+    if records.dtype == _FAST_LAYOUT and records.flags.writeable:
+        return records.view("<f4").reshape(len(records), 4)
+    rows = records.view(np.uint8).reshape(len(records), records.dtype.itemsize)
+    return np.ascontiguousarray(rows[:, start : start + 16]).view("<f4")
 
 
 def records_from_cloud(

@@ -18,7 +18,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import BinaryIO, Literal
 
 import numpy as np
 
@@ -57,6 +57,7 @@ _KEYWORDS = (
     "DATA",
 )
 _WRITABLE = "f4 f8 u1 u2 u4 u8 i1 i2 i4 i8"
+_DATA_LINE = re.compile(rb"(?:^|\n)[ \t]*DATA[^\n]*\n", re.IGNORECASE)
 _FRAME_ID = re.compile(r"#\s*frame_id (.*)")
 _TIMESTAMP = re.compile(r"#\s*timestamp (\S+)\s*")
 
@@ -122,9 +123,15 @@ def read_pcd_header(path: str | os.PathLike[str]) -> PcdHeader:
     path = Path(path)
     try:
         with path.open("rb") as handle:
-            head = handle.read(MAX_HEADER_BYTES)
+            return _read_header(handle, path)
     except OSError as error:
         raise DataError(f"cannot read PCD file: {error.strerror or error}", path=path) from None
+
+
+def _read_header(handle: BinaryIO, path: Path) -> PcdHeader:
+    head = handle.read(4096)
+    if len(head) == 4096 and not _DATA_LINE.search(head):
+        head += handle.read(MAX_HEADER_BYTES - len(head))
     return _parse_header(head, path)
 
 
@@ -158,10 +165,20 @@ def read_pcd(
       oversized payload, corrupt compressed data, missing x/y/z, non-finite points.
     """
     check_policies(nonfinite, zeros)
-    header = read_pcd_header(path)
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            return _read_open(handle, path, nonfinite, zeros)
+    except OSError as error:
+        raise DataError(f"cannot read PCD file: {error.strerror or error}", path=path) from None
+
+
+def _read_open(handle: BinaryIO, path: Path, nonfinite: str, zeros: str) -> PointCloud:
+    header = _read_header(handle, path)
     name = str(path)
     require_xyz(header.fields, name)  # before reading a payload that cannot be used
-    size = Path(path).stat().st_size
+    available = os.fstat(handle.fileno()).st_size - header.data_offset
+    handle.seek(header.data_offset)
     options = {
         "name": name,
         "organised": header.height > 1,
@@ -171,10 +188,10 @@ def read_pcd(
         "timestamp": header.timestamp,
     }
     if header.data == "binary":
-        return _read_binary(Path(path), header, size, options)
+        return _read_binary(handle, path, header, available, options)
     if header.data == "binary_compressed":
-        return _read_compressed(Path(path), header, size, options)
-    return _read_ascii(Path(path), header, options)
+        return _read_compressed(handle, path, header, available, options)
+    return _read_ascii(handle, path, header, available, options)
 
 
 def write_pcd(
@@ -194,7 +211,7 @@ def write_pcd(
     path : path-like
     data : {"binary", "binary_compressed", "ascii"}
       ``binary_compressed`` is PCL's LZF format (compact, slower); ``ascii`` prints
-      every value with enough digits to read back exactly.
+      every value with enough digits to read back exactly (NaN payload bits excepted).
     overwrite : bool
       Replace an existing file; otherwise an existing ``path`` is an InvalidArgument.
 
@@ -393,40 +410,39 @@ def _need(available: int, needed: int, what: str, path: Path) -> None:
         )
 
 
-def _read_binary(path: Path, header: PcdHeader, size: int, options: dict) -> PointCloud:
-    available = size - header.data_offset
+def _read_binary(
+    handle: BinaryIO, path: Path, header: PcdHeader, available: int, options: dict
+) -> PointCloud:
     _need(
         available,
         header.points * header.point_step,
         f"{header.points} points of {header.point_step} bytes",
         path,
     )
-    dtype = header.dtype()
-    records = np.fromfile(path, dtype=dtype, count=header.points, offset=header.data_offset)
-    if len(records) != header.points:  # the file shrank since stat()
+    records = np.fromfile(handle, dtype=header.dtype(), count=header.points)
+    if len(records) != header.points:  # the file shrank since fstat()
         raise DataError(f"expected {header.points} points, read {len(records)}", path=path)
     return cloud_from_records(records, **options)
 
 
-def _read_compressed(path: Path, header: PcdHeader, size: int, options: dict) -> PointCloud:
-    available = size - header.data_offset
+def _read_compressed(
+    handle: BinaryIO, path: Path, header: PcdHeader, available: int, options: dict
+) -> PointCloud:
     _need(available, 8, "the compressed-size words", path)
-    with path.open("rb") as handle:
-        handle.seek(header.data_offset)
-        compressed, uncompressed = (int(v) for v in np.frombuffer(handle.read(8), "<u4"))
-        expected = header.points * header.point_step
-        if uncompressed != expected:
-            raise DataError(
-                f"binary_compressed payload declares {uncompressed} bytes but {header.points} "
-                f"points of {header.point_step} bytes need {expected}",
-                path=path,
-            )
-        _need(available - 8, compressed, "the compressed payload", path)
-        if uncompressed > _lzf.MAX_RATIO * compressed + 64:
-            raise DataError(
-                f"{compressed} LZF bytes cannot expand to the declared {uncompressed}", path=path
-            )
-        packed = handle.read(compressed)
+    compressed, uncompressed = (int(v) for v in np.frombuffer(handle.read(8), "<u4"))
+    expected = header.points * header.point_step
+    if uncompressed != expected:
+        raise DataError(
+            f"binary_compressed payload declares {uncompressed} bytes but {header.points} "
+            f"points of {header.point_step} bytes need {expected}",
+            path=path,
+        )
+    _need(available - 8, compressed, "the compressed payload", path)
+    if uncompressed > _lzf.MAX_RATIO * compressed + 64:
+        raise DataError(
+            f"{compressed} LZF bytes cannot expand to the declared {uncompressed}", path=path
+        )
+    packed = handle.read(compressed)
     try:
         raw = _lzf.decompress(packed, uncompressed)
     except ValueError as error:
@@ -444,17 +460,16 @@ def _read_compressed(path: Path, header: PcdHeader, size: int, options: dict) ->
     return cloud_from_columns(columns, **options)
 
 
-def _read_ascii(path: Path, header: PcdHeader, options: dict) -> PointCloud:
+def _read_ascii(
+    handle: BinaryIO, path: Path, header: PcdHeader, available: int, options: dict
+) -> PointCloud:
     per_point = sum(header.counts)
-    size = path.stat().st_size - header.data_offset
     # Every value takes at least one character and one separator: bound before parsing.
-    _need(size + 1, 2 * header.points * per_point, f"{header.points} ascii points", path)
-    with path.open("rb") as handle:
-        handle.seek(header.data_offset)
-        try:
-            tokens = handle.read().decode("ascii").split()
-        except UnicodeDecodeError:
-            raise DataError("ascii payload holds non-ASCII bytes", path=path) from None
+    _need(available + 1, 2 * header.points * per_point, f"{header.points} ascii points", path)
+    try:
+        tokens = handle.read().decode("ascii").split()
+    except UnicodeDecodeError:
+        raise DataError("ascii payload holds non-ASCII bytes", path=path) from None
     if len(tokens) != header.points * per_point:
         raise DataError(
             f"ascii payload has {len(tokens)} values; {header.points} points x {per_point} "

@@ -238,7 +238,8 @@ class BagIndex:
             found = reader.messages(connections=connections, start=stamp, stop=stamp + 1)
             for position, (connection, _, raw) in enumerate(found):
                 if position == rank:
-                    return self._decode(reader, connection, raw, index, nonfinite, zeros)
+                    name = f"{self.path} [{self.topic} #{index}]"
+                    return _decode(reader, connection, raw, name, nonfinite, zeros)
         raise DataError(f"message {index} on {self.topic} vanished since indexing", path=self.path)
 
     def __iter__(self) -> Iterator[PointCloud]:
@@ -250,18 +251,25 @@ class BagIndex:
     ) -> Iterator[PointCloud]:
         """Every message in order, in one pass over the bag."""
         check_policies(nonfinite, zeros)
-        with _open(self.path) as reader:
-            _, connections = _connections(reader, self.topic, self.path)
-            for index, (connection, _, raw) in enumerate(reader.messages(connections=connections)):
-                yield self._decode(reader, connection, raw, index, nonfinite, zeros)
+        return _iterate(self.path, self.topic, nonfinite, zeros)
 
-    def _decode(
-        self, reader: Any, connection: Any, raw: bytes, index: int, nonfinite: str, zeros: str
-    ) -> PointCloud:
-        name = f"{self.path} [{self.topic} #{index}]"
-        with wrap_errors(name, "PointCloud2 message"):
-            message = reader.deserialize(raw, connection.msgtype)
-        return pointcloud2_to_cloud(message, name=name, nonfinite=nonfinite, zeros=zeros)  # type: ignore[arg-type]
+
+def _iterate(
+    path: Path, topic: str | None, nonfinite: NonFinitePolicy, zeros: ZerosPolicy
+) -> Iterator[PointCloud]:
+    with _open(path) as reader:
+        topic, connections = _connections(reader, topic, path)
+        for index, (connection, _, raw) in enumerate(reader.messages(connections=connections)):
+            name = f"{path} [{topic} #{index}]"
+            yield _decode(reader, connection, raw, name, nonfinite, zeros)
+
+
+def _decode(
+    reader: Any, connection: Any, raw: bytes, name: str, nonfinite: str, zeros: str
+) -> PointCloud:
+    with wrap_errors(name, "PointCloud2 message"):
+        message = reader.deserialize(raw, connection.msgtype)
+    return pointcloud2_to_cloud(message, name=name, nonfinite=nonfinite, zeros=zeros)  # type: ignore[arg-type]
 
 
 def index_bag(path: str | os.PathLike[str], *, topic: str | None = None) -> BagIndex:
@@ -301,8 +309,13 @@ def iter_bag(
     nonfinite: NonFinitePolicy = "reject",
     zeros: ZerosPolicy = "auto",
 ) -> Iterator[PointCloud]:
-    """Yield every PointCloud2 of ``topic`` in order, one message in memory at a time."""
-    yield from index_bag(path, topic=topic).iterate(nonfinite=nonfinite, zeros=zeros)
+    """Yield every PointCloud2 of ``topic`` in order, one message in memory at a time.
+
+    The bag is opened once, when iteration starts; errors about the bag or topic are
+    raised then; bad arguments are raised at once.
+    """
+    check_policies(nonfinite, zeros)
+    return _iterate(Path(path), topic, nonfinite, zeros)
 
 
 def bag_topics(path: str | os.PathLike[str]) -> dict[str, tuple[str | None, int]]:
