@@ -26,7 +26,7 @@ from pytest_metamorphic.strategies.noise import (
     permuted_points,
     rotated_frames,
 )
-from pytest_metamorphic.strategies.roi import road_corridors
+from pytest_metamorphic.strategies.roi import road_corridors, rois
 from pytest_metamorphic.strategies.scenes import scene_frames, scenes
 
 ROAD = ROI.from_polygons([[[-120, -6], [120, -6], [120, 6], [-120, 6]]])
@@ -70,6 +70,16 @@ def test_noise_is_always_outside_the_roi(data):
     assert isinstance(followup, Followup)
     assert 1 <= followup.params["n"] <= 300
     _check_outside(followup, source)
+
+
+@settings(max_examples=20, deadline=None)
+@given(roi=rois(), data=st.data())
+def test_noise_is_outside_any_drawn_roi(roi, data):
+    # Curved roads, junctions and random polygons, exact and rasterised.
+    source = Frame(street().cloud, roi=roi)
+    followup = data.draw(noise_outside_roi(source, max_size=200))
+    _check_outside(followup, source)
+    assert roi.boundary_distance(_injected(followup)).min() >= roi.cell_size
 
 
 @settings(max_examples=3, suppress_health_check=[HealthCheck.too_slow], deadline=None)
