@@ -509,8 +509,11 @@ def write_bag(
     topic : str
       Absolute topic name.
     storage : {"rosbag1", "sqlite3", "mcap"}, optional
-      Default: ``rosbag1`` for ``*.bag``, else ``sqlite3`` (what ROS 2 Humble reads out of
-      the box). Choose ``mcap`` for Foxglove, which opens the ``.mcap`` file inside.
+      Default: ``rosbag1`` for ``*.bag``, else ``sqlite3`` (the storage every ROS 2
+      distribution ships). Choose ``mcap`` for Foxglove, which opens the ``.mcap`` file
+      inside. rosbags writes bag metadata version 8: distributions older than that
+      format (Humble) may refuse ``metadata.yaml``; delete it and run
+      ``ros2 bag reindex`` there, or use a ROS 1 bag.
     overwrite : bool
       Replace an existing bag.
 
