@@ -190,7 +190,12 @@ def _as_xy(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
 
 
 def _points_in_polygon(xy: NDArray[np.float64], polygon: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Even-odd test of (n, 2) points against one polygon, vectorised over points and edges."""
+    """Even-odd test of (n, 2) points against one polygon, vectorised over points and edges.
+
+    A horizontal ray from a point can only cross edges whose y range holds the point's y,
+    so edges are bucketed into horizontal bands and each point is tested against the
+    edges of its band only (a few, instead of all k).
+    """
     inside = np.zeros(len(xy), dtype=bool)
     low, high = polygon.min(axis=0), polygon.max(axis=0)
     candidates = np.flatnonzero(
@@ -200,16 +205,46 @@ def _points_in_polygon(xy: NDArray[np.float64], polygon: NDArray[np.float64]) ->
         return inside
     x0, y0 = polygon[:, 0], polygon[:, 1]
     x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
-    # Half-open in y so that a vertex on the ray is counted once.
-    dy = np.where(y1 != y0, y1 - y0, 1.0)
-    block = max(1, _BLOCK_ELEMENTS // len(polygon))
-    for begin in range(0, len(candidates), block):
-        rows = candidates[begin : begin + block]
-        px, py = xy[rows, 0:1], xy[rows, 1:2]
-        straddles = (y0 <= py) != (y1 <= py)
-        cross_x = x0 + (py - y0) * (x1 - x0) / dy
+    bands = max(1, min(len(polygon), 256))
+    height = (high[1] - low[1]) / bands or 1.0
+    # Bands each edge spans (inclusive); edges are listed band by band.
+    first = np.clip(((np.minimum(y0, y1) - low[1]) / height).astype(np.intp), 0, bands - 1)
+    last = np.clip(((np.maximum(y0, y1) - low[1]) / height).astype(np.intp), 0, bands - 1)
+    spans = last - first + 1
+    edge_of = np.repeat(np.arange(len(polygon)), spans)
+    band_of = np.repeat(first, spans) + (
+        np.arange(int(spans.sum())) - np.repeat(np.cumsum(spans) - spans, spans)
+    )
+    order = np.argsort(band_of, kind="stable")
+    edge_of = edge_of[order]
+    per_band = np.bincount(band_of, minlength=bands)
+    band_start = np.cumsum(per_band) - per_band
+    # Point-edge pairs: each candidate with every edge of its band.
+    point_band = np.clip(((xy[candidates, 1] - low[1]) / height).astype(np.intp), 0, bands - 1)
+    counts = per_band[point_band]
+    hits_per_point = np.zeros(len(candidates), dtype=np.int64)
+    # Blocks of points keep the pair arrays bounded.
+    cumulative = np.cumsum(counts)
+    begin = 0
+    while begin < len(candidates):
+        limit = (cumulative[begin - 1] if begin else 0) + _BLOCK_ELEMENTS
+        end = max(begin + 1, int(np.searchsorted(cumulative, limit, side="right")))
+        rows = np.arange(begin, end)
+        n_pairs = counts[rows]
+        pair_point = np.repeat(rows, n_pairs)
+        offsets = np.arange(int(n_pairs.sum())) - np.repeat(np.cumsum(n_pairs) - n_pairs, n_pairs)
+        pair_edge = edge_of[np.repeat(band_start[point_band[rows]], n_pairs) + offsets]
+        px = xy[candidates[pair_point], 0]
+        py = xy[candidates[pair_point], 1]
+        ex0, ey0, ex1, ey1 = x0[pair_edge], y0[pair_edge], x1[pair_edge], y1[pair_edge]
+        # Half-open in y so that a vertex on the ray is counted once.
+        straddles = (ey0 <= py) != (ey1 <= py)
+        dy = np.where(ey1 != ey0, ey1 - ey0, 1.0)
+        cross_x = ex0 + (py - ey0) * (ex1 - ex0) / dy
         hits = straddles & (px < cross_x)
-        inside[rows] = (np.count_nonzero(hits, axis=1) & 1).astype(bool)
+        hits_per_point[begin:end] = np.bincount(pair_point[hits] - begin, minlength=end - begin)
+        begin = end
+    inside[candidates] = (hits_per_point & 1).astype(bool)
     return inside
 
 

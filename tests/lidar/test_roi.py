@@ -13,7 +13,7 @@ from matplotlib.path import Path as MplPath
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.roi import ROI, _scan_intervals, validate_polygon
+from pytest_metamorphic.lidar.roi import ROI, _points_in_polygon, _scan_intervals, validate_polygon
 
 SQUARE = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
 # A concave "U" with a notch, exercising several intervals per scan line.
@@ -378,3 +378,22 @@ def test_pickles_without_the_cached_bitmaps():
     assert copy == roi
     xy = np.random.default_rng(0).uniform(-30, 30, (1000, 2))
     assert np.array_equal(copy.contains(xy), roi.contains(xy))
+
+
+@settings(max_examples=40)
+@given(seed=st.integers(0, 2**32 - 1), k=st.integers(3, 60), integer=st.booleans())
+def test_banded_point_in_polygon_equals_testing_every_edge(seed, k, integer):
+    # The banded test must give exactly the all-edges crossing count, also for integer
+    # coordinates where points sit on vertices and horizontal edges.
+    rng = np.random.default_rng(seed)
+    polygon = _random_simple_polygon(rng, k)
+    xy = rng.uniform(-45, 45, size=(2000, 2))
+    if integer:
+        polygon, xy = np.round(polygon), np.round(xy)
+    x0, y0 = polygon[:, 0], polygon[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    px, py = xy[:, :1], xy[:, 1:]
+    crossing = x0 + (py - y0) * (x1 - x0) / np.where(y1 != y0, y1 - y0, 1.0)
+    hits = ((y0 <= py) != (y1 <= py)) & (px < crossing)
+    expected = (np.count_nonzero(hits, axis=1) & 1).astype(bool)
+    assert np.array_equal(_points_in_polygon(xy, polygon), expected)
