@@ -155,7 +155,11 @@ def main() -> None:
         ),
         ("exact even-odd (grid-accelerated)", f"{exact_ms[0]:8.2f} ms", f"min {exact_ms[1]:.2f}"),
         ("matplotlib Path.contains_points", f"{mpl_ms[0]:8.2f} ms", f"min {mpl_ms[1]:.2f}"),
-        ("raster speed-up vs matplotlib", f"{speedup:8.1f} x", "target >= 5x"),
+        (
+            "raster speed-up vs matplotlib",
+            f"{speedup:8.1f} x",
+            f"target >= 5x (ratio of minima: {mpl_ms[1] / raster_ms[1]:.1f} x)",
+        ),
         ("raster == exact on these points", f"{100 * raster_agree:8.3f} %", ""),
         ("bitmap scan conversion (once per ROI)", f"{build_ms[0]:8.2f} ms", ""),
         ("MR1 noise n=1000: seeds -> points -> frame", f"{noise_ms[0]:8.2f} ms", "target <= 5 ms"),
