@@ -137,12 +137,14 @@ class BeamLayout:
     elevations : (L,) float64
       Radians, positive up.
     azimuth_offsets : (L,) float64
-      Radians added to the firing azimuth of each laser (the calibration's
-      ``rot_correction`` is subtracted by drivers; we store the signed offset).
+      Radians added to the firing azimuth of each laser (for the HDL-64E, the
+      calibration's ``rot_correction``; its sign convention does not matter for a
+      synthetic sweep, which covers all azimuths).
     firings_per_revolution : int
       Azimuth steps per sweep.
     max_range, min_range : float
-      Returns outside ``[min_range, max_range]`` metres are dropped.
+      Returns outside ``[min_range, max_range]`` metres are dropped (HDL-64E: 120 m; the
+      0.9 m minimum is our assumption for returns blocked by the housing and vehicle).
     range_noise : float
       Standard deviation of the Gaussian range error in metres.
     """
