@@ -16,8 +16,8 @@ ROS install). Reading:
 Writing (:func:`write_bag`) produces a ROS 1 bag (``*.bag``) or a ROS 2 bag folder in
 sqlite3 or MCAP storage, one PointCloud2 per cloud, which RViz (after ``rosbag play`` /
 ``ros2 bag play``) and Foxglove open. Reading it back gives equal clouds: points, fields
-and their dtypes, frame id and timestamp (a cloud without a timestamp is written with
-stamp 0, which reads back as None, ROS's "unset").
+and their dtypes, frame id and timestamp (to the nanosecond; a cloud without a timestamp
+is written with stamp 0, which reads back as None, ROS's "unset").
 
 Every failure of the underlying parsers on a corrupt bag becomes a
 :class:`~pytest_metamorphic.core.errors.DataError` naming the bag.
@@ -519,9 +519,11 @@ def write_bag(
 
     Notes
     -----
-    The log time of each message is its header stamp, bumped by 1 ns where needed so log
-    times strictly increase (readers return messages in log-time order, so the written
-    order is the read order). Clouds without a timestamp get stamp 0.
+    Header stamps count nanoseconds: a timestamp is rounded to the nearest nanosecond
+    (so any timestamp read from a bag comes back exactly). The log time of each message
+    is its stamp, bumped by 1 ns where needed so log times strictly increase (readers
+    return messages in log-time order, so the written order is the read order). Clouds
+    without a timestamp get stamp 0.
     """
     target = Path(path)
     if storage is None:

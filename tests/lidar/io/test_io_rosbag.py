@@ -177,6 +177,12 @@ def test_real_clouds_round_trip(ouster, tmp_path, name, storage):
         assert (target / "out.mcap").is_file() and (target / "metadata.yaml").is_file()
 
 
+def test_timestamps_are_rounded_to_the_nanosecond(tmp_path):
+    cloud = PointCloud(np.ones((1, 4)), timestamp=1.2472855841002684)
+    (back,) = iter_bag(write_bag(cloud, tmp_path / "t.bag"))
+    assert back.timestamp == 1 + 247285584 / 1e9
+
+
 def test_written_bag_keeps_order_for_equal_or_missing_stamps(tmp_path):
     clouds = [
         PointCloud(np.full((1, 4), k, np.float32), frame_id=f"f{k}", timestamp=t)
@@ -199,7 +205,13 @@ def ros_clouds(draw):
         dtype = draw(st.sampled_from(["i1", "u1", "i2", "u2", "i4", "u4", "f4", "f8"]))
         shape = (n,) if draw(st.booleans()) else (n, 3)
         fields[f"f{index}"] = draw(hnp.arrays(np.dtype(dtype), shape))
-    stamp = draw(st.none() | st.floats(1e-3, 2e9))
+    # ROS stamps count nanoseconds; seconds as the reader builds them from a stamp.
+    stamp = draw(
+        st.none()
+        | st.tuples(st.integers(0, 2**31 - 1), st.integers(0, 10**9 - 1))
+        .filter(lambda t: t != (0, 0))
+        .map(lambda t: t[0] + t[1] / 1e9)
+    )
     frame_id = draw(st.text(max_size=6))
     return PointCloud(points, fields=fields, frame_id=frame_id, timestamp=stamp)
 
