@@ -17,11 +17,12 @@ relation                         follow-up                            expected o
 :func:`rotation_equivariance`    cloud and ROI turned by θ            O turned by θ
 ===============================  ===================================  ======================
 
-MR1 follows Zhou & Sun (CACM 2019): a few points scattered outside the ROI, z and
-intensity uniform over the frame's ranges, "outside" holding for the exact polygons and
-for Apollo's 0.25 m bitmap with a free cell in between. The paper checked only the
-cardinality; :func:`mr1_subset` checks what MR1 says, every source obstacle keeping its
-own match (:func:`~pytest_metamorphic.core.matching.one_to_one`) in the follow-up.
+MR1 follows Zhou & Sun (CACM 2019): 10, 100 or 1000 points (their three settings)
+scattered outside the ROI, z and intensity uniform over the frame's ranges, "outside"
+holding for the exact polygons and for Apollo's 0.25 m bitmap with a free cell in
+between. The paper checked only the cardinality; :func:`mr1_subset` checks what MR1
+says, every source obstacle keeping its own match
+(:func:`~pytest_metamorphic.core.matching.one_to_one`) in the follow-up.
 
 The equalities are exact: a perception stack that filters by ROI first and treats the
 cloud as a set of points (as :class:`~pytest_metamorphic.lidar.perception.ReferencePerception`
@@ -53,6 +54,7 @@ from pytest_metamorphic.strategies.noise import (
 )
 
 __all__ = [
+    "PAPER_NOISE_SIZES",
     "RotatedObstacles",
     "duplication_invariance",
     "lidar_relations",
@@ -65,10 +67,36 @@ __all__ = [
 ]
 
 
-def _noise(n: int | None, max_size: int) -> Any:
-    if n is not None:
+PAPER_NOISE_SIZES = (10, 100, 1000)
+"""The numbers of noise points Zhou & Sun added per follow-up."""
+
+NoiseSize = int | Sequence[int] | None
+
+
+def _noise(n: NoiseSize, max_size: int) -> Any:
+    """Follow-up strategy: noise outside the ROI, as many points as ``n`` says."""
+    if n is None:
+        return lambda frame: noise_outside_roi(_frame(frame), min_size=1, max_size=max_size)
+    if isinstance(n, int):
         return lambda frame: noise_outside_roi(_frame(frame), n=n)
-    return lambda frame: noise_outside_roi(_frame(frame), min_size=1, max_size=max_size)
+    sizes = tuple(n)
+
+    def followup(frame: Any) -> st.SearchStrategy[Followup]:
+        frame = _frame(frame)
+        return st.sampled_from(sizes).flatmap(lambda size: noise_outside_roi(frame, n=size))
+
+    return followup
+
+
+def _check_noise(n: NoiseSize, max_size: int) -> None:
+    _check_size(max_size, "max_size")
+    if n is None or isinstance(n, int):
+        _check_size(n, "n", allow_none=True)
+        return
+    if isinstance(n, (str, bytes)) or not isinstance(n, Sequence) or not n:
+        raise InvalidArgument(f"n={n!r} must be an int, a non-empty sequence of ints, or None")
+    for size in n:
+        _check_size(size, "n")
 
 
 def _frame(value: Any) -> Frame:
@@ -88,7 +116,7 @@ def _check_size(value: Any, name: str, *, allow_none: bool = False) -> None:
 
 def mr1_subset(
     *,
-    n: int | None = None,
+    n: NoiseSize = PAPER_NOISE_SIZES,
     max_size: int = 1000,
     matcher: Matcher | None = None,
     name: str = "MR1: noise outside ROI => O subset of O'",
@@ -97,42 +125,47 @@ def mr1_subset(
 
     Parameters
     ----------
-    n : int, optional
-        Exactly this many noise points (the paper: 10, 100, 1000).
+    n : int, sequence of int, or None
+        Noise points per follow-up: exactly ``n``; or one of the sizes (default: the
+        paper's 10, 100 and 1000, shrinking toward the first); or, with None, between 1
+        and ``max_size`` (Hypothesis then mostly draws a handful, and shrinks the count).
     max_size : int
-        Otherwise between 1 and ``max_size`` points, shrinking toward fewer.
+        The largest count when ``n`` is None.
     matcher : Matcher, optional
         When a follow-up obstacle counts as the same as a source one. Default: same
         label and bird's-eye IoU >= 0.5 (KITTI's threshold for people), so an obstacle
         that moves a little is kept but one that vanishes or changes class is not.
     """
-    _check_size(n, "n", allow_none=True)
-    _check_size(max_size, "max_size")
+    _check_noise(n, max_size)
     relation = subset_relation(matcher=matcher or IoUMatcher(0.5, same_label=True))
     return MetamorphicRelation(name, _noise(n, max_size), relation)
 
 
 def mr1_cardinality(
     *,
-    n: int | None = None,
+    n: NoiseSize = PAPER_NOISE_SIZES,
     max_size: int = 1000,
     name: str = "MR1 (paper's check): noise outside ROI => |O| <= |O'|",
 ) -> MetamorphicRelation:
-    """MR1 as Zhou & Sun checked it: the follow-up has at least as many obstacles."""
-    _check_size(n, "n", allow_none=True)
-    _check_size(max_size, "max_size")
+    """MR1 as Zhou & Sun checked it: the follow-up has at least as many obstacles.
+
+    ``n`` and ``max_size`` as for :func:`mr1_subset`.
+    """
+    _check_noise(n, max_size)
     return MetamorphicRelation(name, _noise(n, max_size), cardinality("<="))
 
 
 def outside_noise_invariance(
     *,
-    n: int | None = None,
+    n: NoiseSize = PAPER_NOISE_SIZES,
     max_size: int = 1000,
     name: str = "noise outside ROI => O == O'",
 ) -> MetamorphicRelation:
-    """Points outside the ROI change nothing at all: the outputs are equal."""
-    _check_size(n, "n", allow_none=True)
-    _check_size(max_size, "max_size")
+    """Points outside the ROI change nothing at all: the outputs are equal.
+
+    ``n`` and ``max_size`` as for :func:`mr1_subset`.
+    """
+    _check_noise(n, max_size)
     return MetamorphicRelation(name, _noise(n, max_size), equal())
 
 
@@ -379,13 +412,19 @@ def rotation_equivariance(
 
 
 def lidar_relations(
-    *, noise_size: int = 1000, rotation: Literal["quarter_turns", "any"] = "quarter_turns"
+    *,
+    noise: NoiseSize = PAPER_NOISE_SIZES,
+    rotation: Literal["quarter_turns", "any"] = "quarter_turns",
 ) -> list[MetamorphicRelation]:
-    """The whole library, for ``@metamorphic(relations=lidar_relations())``."""
+    """The whole library, for ``@metamorphic(relations=lidar_relations())``.
+
+    ``noise`` is the ``n`` of the three noise relations; ``rotation`` the ``angles`` of
+    :func:`rotation_equivariance`.
+    """
     return [
-        mr1_subset(max_size=noise_size),
-        mr1_cardinality(max_size=noise_size),
-        outside_noise_invariance(max_size=noise_size),
+        mr1_subset(n=noise),
+        mr1_cardinality(n=noise),
+        outside_noise_invariance(n=noise),
         outside_removal(),
         permutation_invariance(),
         duplication_invariance(),

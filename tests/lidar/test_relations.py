@@ -237,6 +237,8 @@ def test_bad_arguments_are_named() -> None:
         mr1_subset(max_size=0)
     with pytest.raises(InvalidArgument, match="n="):
         mr1_subset(n=-3)
+    with pytest.raises(InvalidArgument, match="non-empty sequence"):
+        mr1_subset(n=[])
     with pytest.raises(InvalidArgument, match="method"):
         outside_removal(method="bitmap")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="angles"):
