@@ -6,6 +6,12 @@ relation's transform. Both are drawn through Hypothesis, so a failure shrinks th
 *and* the transform parameters. For each case the engine runs the system under test (the
 decorated function) once on the source, reuses that output for every follow-up, and
 checks each relation; a failed check raises :class:`MetamorphicViolation`.
+
+When Hypothesis replays its shrunk failing example for the last time, and the
+follow-up's transform is made of independent elements (injected points: see
+:mod:`pytest_metamorphic.core.perturbation`), the engine reduces it further with ddmin to
+a 1-minimal follow-up (:mod:`pytest_metamorphic.core.reduction`) and reports that one.
+Every violation is handed to the recorder's ``on_violation`` (the plugin saves artifacts).
 """
 
 from __future__ import annotations
@@ -28,10 +34,22 @@ from pytest_metamorphic.core.errors import (
     NondeterministicSystemError,
     SystemUnderTestCrash,
 )
+from pytest_metamorphic.core.reduction import Reduction, reduce_followup
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
-from pytest_metamorphic.core.stats import DEFAULT_FOLLOWUPS, current_recorder
+from pytest_metamorphic.core.stats import (
+    DEFAULT_FOLLOWUPS,
+    DEFAULT_MINIMIZE_BUDGET,
+    Recorder,
+    current_recorder,
+)
 
-__all__ = ["Followup", "MetamorphicCase", "MetamorphicRelation", "metamorphic"]
+__all__ = [
+    "Followup",
+    "MetamorphicCase",
+    "MetamorphicRelation",
+    "ViolationRecord",
+    "metamorphic",
+]
 
 CASE_ARGUMENT = "case"
 _MAX_FOLLOWUPS = 100
@@ -243,7 +261,8 @@ class _Runner:
             stats = recorder.relation(mr.name) if recorder else None
             if stats:
                 stats.sources += 1
-            items = case.followups[mr.name]
+            # .get: an explicit @example case may carry follow-ups for one relation only.
+            items = case.followups.get(mr.name, ())
             for index, item in enumerate(items):
                 what = f"follow-up {index} of relation {mr.name!r}"
                 try:
@@ -258,15 +277,90 @@ class _Runner:
                     self._confirm_deterministic(case, source_output, fixtures, mr, stats)
                     if stats:
                         stats.violations += 1
+                    final = _in_final_run()
+                    reduction, note = (
+                        self._reduce(case.source, source_output, output, item, index, mr, fixtures)
+                        if final
+                        else (None, "")
+                    )
+                    record = ViolationRecord(
+                        nodeid=recorder.nodeid if recorder else "",
+                        relation=mr.name,
+                        check=verdict.relation,
+                        index=index,
+                        total=len(items),
+                        source=case.source,
+                        followup=item,
+                        source_output=source_output,
+                        followup_output=output,
+                        verdict=verdict,
+                        reduction=reduction,
+                        reduction_note=note,
+                        seed=_hypothesis_seed(),
+                    )
+                    saved = None
                     if recorder:
                         recorder.violations.append(
                             {
                                 "relation": mr.name,
                                 "index": index,
                                 "explanation": verdict.explanation,
+                                **(
+                                    {
+                                        "minimal_size": reduction.size,
+                                        "original_size": reduction.original_size,
+                                        "proven_minimal": reduction.proven_minimal,
+                                        "minimize_calls": reduction.calls,
+                                    }
+                                    if reduction
+                                    else {}
+                                ),
                             }
                         )
-                    raise _violation(mr, verdict, item, index, len(items), source_output, output)
+                        saved = _save(recorder, record, final)
+                    raise _violation(record, saved)
+
+    def _reduce(
+        self,
+        source: Any,
+        source_output: Any,
+        followup_output: Any,
+        item: Followup,
+        index: int,
+        mr: MetamorphicRelation,
+        fixtures: dict[str, Any],
+    ) -> tuple[Reduction | None, str]:
+        """The 1-minimal follow-up (or None) and a note on why there is none."""
+        recorder = current_recorder()
+        budget = recorder.minimize_budget if recorder else DEFAULT_MINIMIZE_BUDGET
+        if budget <= 0:
+            return None, ""
+
+        def run(value: Any) -> Any:
+            return self.fn(value, **fixtures)
+
+        try:
+            reduction = reduce_followup(
+                item.params,
+                source=source,
+                source_output=source_output,
+                followup_output=followup_output,
+                run=run,
+                check=mr.relation.check,
+                index=index,
+                budget=budget,
+            )
+        except HypothesisException:
+            raise
+        except Exception as error:
+            # The violation stands on its own; a failed reduction must not replace it
+            # (Hypothesis would call the final replay flaky).
+            return None, f"could not reduce the follow-up: {type(error).__name__}: {error}"
+        if reduction is not None and recorder:
+            stats = recorder.relation(mr.name)
+            stats.sut_calls += reduction.calls
+            stats.minimize_calls += reduction.calls
+        return reduction, ""
 
     def _run(
         self, value: Any, fixtures: dict[str, Any], what: str, stage: str, relation: str | None
@@ -318,28 +412,124 @@ class _Runner:
             )
 
 
-def _violation(
-    mr: MetamorphicRelation,
-    verdict: Verdict,
-    item: Followup,
-    index: int,
-    total: int,
-    source_output: Any,
-    followup_output: Any,
-) -> MetamorphicViolation:
+@dataclass(frozen=True)
+class ViolationRecord:
+    """Everything known about one violation, for the message and for artifacts.
+
+    Attributes
+    ----------
+    nodeid : str
+        The pytest node id ("" outside the plugin).
+    relation, check : str
+        The metamorphic relation's name and the output relation's name.
+    index, total : int
+        Which follow-up of how many.
+    source, followup
+        The source input and the violating follow-up as drawn (before reduction).
+    source_output, followup_output, verdict
+        The outputs and the relation's verdict on that follow-up.
+    reduction : Reduction or None
+        The 1-minimal follow-up, when the transform was reducible and this was the final run.
+    reduction_note : str
+        Why a reduction is missing although one was attempted.
+    seed : dict
+        Hypothesis' seed for the run (``{"seed": int or None, "derandomize": bool}``).
+    """
+
+    nodeid: str
+    relation: str
+    check: str
+    index: int
+    total: int
+    source: Any
+    followup: Followup
+    source_output: Any
+    followup_output: Any
+    verdict: Verdict
+    reduction: Reduction | None = None
+    reduction_note: str = ""
+    seed: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def minimal_followup(self) -> Followup:
+        """The reduced follow-up when there is one, else the follow-up as drawn."""
+        if self.reduction is None:
+            return self.followup
+        return Followup(self.reduction.followup_input, self.reduction.params)
+
+    @property
+    def minimal_output(self) -> Any:
+        return self.followup_output if self.reduction is None else self.reduction.output
+
+    @property
+    def minimal_verdict(self) -> Verdict:
+        return self.verdict if self.reduction is None else self.reduction.verdict
+
+
+def _in_final_run() -> bool:
+    """True in Hypothesis' last replay of a failing example, and outside Hypothesis."""
+    from hypothesis.control import current_build_context
+
+    try:
+        return bool(current_build_context().is_final)
+    except HypothesisException:  # no build context: called directly, e.g. by a replay
+        return True
+
+
+def _hypothesis_seed() -> dict[str, Any]:
+    """The seed Hypothesis used for this test run (``@seed``, generated, or derandomized)."""
+    from hypothesis.control import current_build_context
+
+    try:
+        wrapped = current_build_context().wrapped_test
+    except HypothesisException:
+        return {"seed": None, "derandomize": False}
+    # Private attributes, read defensively: Hypothesis prints the same seed on failures.
+    seed = getattr(wrapped, "_hypothesis_internal_use_seed", None)
+    if seed is None:
+        seed = getattr(wrapped, "_hypothesis_internal_use_generated_seed", None)
+    chosen = getattr(wrapped, "_hypothesis_internal_use_settings", None)
+    return {
+        "seed": seed if isinstance(seed, int) else None,
+        "derandomize": bool(getattr(chosen, "derandomize", False)),
+    }
+
+
+def _save(recorder: Recorder, record: ViolationRecord, final: bool) -> str | None:
+    if recorder.on_violation is None:
+        return None
+    return recorder.on_violation(record, final)
+
+
+def _violation(record: ViolationRecord, saved: str | None) -> MetamorphicViolation:
+    reduction = record.reduction
+    verdict = record.minimal_verdict
+    item = record.minimal_followup
     lines = [
-        f"metamorphic relation {mr.name!r} violated on follow-up {index} of {total} "
-        f"(check: {verdict.relation})",
+        f"metamorphic relation {record.relation!r} violated on follow-up {record.index} of "
+        f"{record.total} (check: {verdict.relation})",
     ]
+    if reduction is not None:
+        lines.append(f"  minimal follow-up: {reduction.summary()}")
+        lines.extend(f"    {line}" for line in reduction.element_lines())
+    elif record.reduction_note:
+        lines.append(f"  {record.reduction_note}")
     if item.params:
         lines.append(f"  transform parameters: {_short_params(item.params)}")
     lines.append(f"  {verdict.explanation}")
-    lines.append(f"  source output:    {describe_value(source_output)}")
-    lines.append(f"  follow-up output: {describe_value(followup_output)}")
-    error = MetamorphicViolation("\n".join(lines), relation=mr.name, verdict=verdict)
+    if reduction is not None and record.verdict.explanation != verdict.explanation:
+        lines.append(
+            f"  with all {reduction.original_size} elements: {record.verdict.explanation}"
+        )
+    lines.append(f"  source output:    {describe_value(record.source_output)}")
+    lines.append(f"  follow-up output: {describe_value(record.minimal_output)}")
+    if saved:
+        lines.append(f"  artifacts: {saved}")
+    error = MetamorphicViolation("\n".join(lines), relation=record.relation, verdict=verdict)
     error.followup = item
-    error.source_output = source_output
-    error.followup_output = followup_output
+    error.source_output = record.source_output
+    error.followup_output = record.minimal_output
+    error.record = record
     return error
 
 

@@ -7,7 +7,7 @@ is counted, which costs nothing.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import asdict, dataclass, field
@@ -16,15 +16,18 @@ from typing import Any
 __all__ = ["Recorder", "RelationStats", "current_recorder", "recording"]
 
 DEFAULT_FOLLOWUPS = 2
+DEFAULT_MINIMIZE_BUDGET = 500
+"""SUT calls one violation's reduction to a 1-minimal follow-up may spend."""
 
 
 @dataclass
 class RelationStats:
     """Counts for one metamorphic relation of one test.
 
-    ``sut_calls`` counts the follow-up executions and determinism re-runs this relation
-    caused; the source execution is shared by all relations of a test and counted once in
-    :attr:`Recorder.source_calls`.
+    ``sut_calls`` counts the follow-up executions, determinism re-runs and reduction runs
+    this relation caused; the source execution is shared by all relations of a test and
+    counted once in :attr:`Recorder.source_calls`. ``minimize_calls`` is the part of
+    ``sut_calls`` spent reducing violations to 1-minimal follow-ups.
     """
 
     sources: int = 0
@@ -33,6 +36,7 @@ class RelationStats:
     violations: int = 0
     crashes: int = 0
     nondeterministic: int = 0
+    minimize_calls: int = 0
 
     def add(self, other: RelationStats) -> None:
         for name, value in asdict(other).items():
@@ -41,10 +45,18 @@ class RelationStats:
 
 @dataclass
 class Recorder:
-    """Everything counted while one test ran, plus the options it ran under."""
+    """Everything counted while one test ran, plus the options it ran under.
+
+    ``on_violation(record, final)`` is called by the engine for every violation it is
+    about to raise (``final``: Hypothesis's last replay of the shrunk example, or a run
+    outside Hypothesis' search); it returns where the violation was saved, or None.
+    """
 
     followups: int = DEFAULT_FOLLOWUPS
     check_determinism: bool = True
+    minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
+    nodeid: str = ""
+    on_violation: Callable[[Any, bool], str | None] | None = field(default=None, repr=False)
     source_calls: int = 0
     source_crashes: int = 0
     relations: dict[str, RelationStats] = field(default_factory=dict)
