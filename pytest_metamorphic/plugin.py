@@ -1,13 +1,15 @@
 """The pytest plugin (entry point ``pytest_metamorphic_mt``).
 
-Thin on purpose: options, markers, a recorder around each metamorphic test call, and the
-session summary. Imports of numpy/scipy/Hypothesis internals happen only when a
-metamorphic test actually runs.
+Thin on purpose: options, markers, a recorder around each metamorphic test call (which
+saves violation artifacts through :mod:`pytest_metamorphic.reports.artifacts`), replay of
+saved artifacts (``--mt-replay``), and the session summary. Imports of numpy/scipy/Hypothesis
+internals happen only when a metamorphic test actually runs.
 """
 
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 from collections.abc import Generator
 from dataclasses import dataclass
@@ -16,7 +18,12 @@ from typing import Any
 
 import pytest
 
-from pytest_metamorphic.core.stats import DEFAULT_FOLLOWUPS, Recorder, recording
+from pytest_metamorphic.core.stats import (
+    DEFAULT_FOLLOWUPS,
+    DEFAULT_MINIMIZE_BUDGET,
+    Recorder,
+    recording,
+)
 from pytest_metamorphic.reports.summary import SessionSummary, junit_properties
 
 _OPTIONS = pytest.StashKey["Options"]()
@@ -26,7 +33,14 @@ _RECORDER = pytest.StashKey[Recorder]()
 
 _CAMPAIGN_RESULT = pytest.StashKey[Any]()
 _CAMPAIGNS = pytest.StashKey[dict]()
+_WRITER = pytest.StashKey[Any]()
+_REPLAYS = pytest.StashKey[list]()
+_REPLAY_RESULTS = pytest.StashKey[list]()
+_ARTIFACT_LIST = pytest.StashKey[list]()
 CAMPAIGN_PROPERTY = "metamorphic_campaign"
+ARTIFACT_PROPERTY = "metamorphic_artifact"
+REPLAY_PROPERTY = "metamorphic_replay"
+DEFAULT_ARTIFACTS = Path("mt-artifacts")
 
 
 @dataclass(frozen=True)
@@ -37,6 +51,9 @@ class Options:
     campaign: bool = False
     campaign_dir: Path = Path("mt-campaigns")
     resume: bool = False
+    artifacts: Path | None = DEFAULT_ARTIFACTS
+    minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
+    replay: tuple[Path, ...] = ()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -80,6 +97,37 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default=False,
         help="continue interrupted campaigns from their logs instead of starting afresh",
     )
+    group.addoption(
+        "--mt-artifacts",
+        default=None,
+        metavar="DIR",
+        help="save each violation (clouds, minimal perturbation, JSON record, bird's-eye "
+        f"PNG) under DIR (ini: mt_artifacts; default {DEFAULT_ARTIFACTS})",
+    )
+    group.addoption(
+        "--mt-no-artifacts",
+        action="store_true",
+        default=False,
+        help="do not save violation artifacts",
+    )
+    group.addoption(
+        "--mt-minimize-budget",
+        type=int,
+        default=None,
+        metavar="N",
+        help="SUT calls allowed for reducing a violating follow-up to a proven 1-minimal one "
+        f"(ini: mt_minimize_budget; default {DEFAULT_MINIMIZE_BUDGET}; 0: do not reduce)",
+    )
+    group.addoption(
+        "--mt-replay",
+        action="append",
+        default=[],
+        metavar="ARTIFACT",
+        help="re-run a saved violation (an artifact folder) against the current system: "
+        "runs only its test, fails while the violation persists; repeatable",
+    )
+    parser.addini("mt_artifacts", "where violation artifacts are saved", default=None)
+    parser.addini("mt_minimize_budget", "SUT calls allowed per reduction", default=None)
     parser.addini("mt_followups", "follow-ups per source and relation", default=None)
     parser.addini("mt_campaign_dir", "where campaigns write logs and reports", default=None)
     parser.addini("mt_report", "path of the JSON report", default=None)
@@ -122,7 +170,59 @@ def _options(config: pytest.Config) -> Options:
     campaign = bool(config.getoption("mt_campaign"))
     if resume and not campaign:
         raise pytest.UsageError("--mt-resume only makes sense with --mt-campaign")
-    return Options(followups, bool(check), report, campaign, campaign_dir, resume)
+    return Options(
+        followups,
+        bool(check),
+        report,
+        campaign,
+        campaign_dir,
+        resume,
+        artifacts=_artifacts_option(config),
+        minimize_budget=_budget_option(config),
+        replay=tuple(_replay_option(config)),
+    )
+
+
+def _artifacts_option(config: pytest.Config) -> Path | None:
+    if config.getoption("mt_no_artifacts"):
+        return None
+    raw = config.getoption("mt_artifacts")
+    source = "--mt-artifacts"
+    if raw is None:
+        raw, source = config.getini("mt_artifacts"), "ini mt_artifacts"
+    folder = Path(raw) if raw else DEFAULT_ARTIFACTS
+    if folder.exists() and not folder.is_dir():
+        raise pytest.UsageError(f"{source}={folder} exists and is not a directory")
+    return folder
+
+
+def _budget_option(config: pytest.Config) -> int:
+    raw = config.getoption("mt_minimize_budget")
+    source = "--mt-minimize-budget"
+    if raw is None:
+        raw, source = config.getini("mt_minimize_budget"), "ini mt_minimize_budget"
+    if raw in (None, ""):
+        return DEFAULT_MINIMIZE_BUDGET
+    try:
+        budget = int(raw)
+    except (TypeError, ValueError):
+        raise pytest.UsageError(f"{source}={raw!r} must be an integer") from None
+    if budget < 0:
+        raise pytest.UsageError(f"{source}={budget} must be >= 0 (0 switches reduction off)")
+    return budget
+
+
+def _replay_option(config: pytest.Config) -> list[Path]:
+    folders = []
+    for raw in config.getoption("mt_replay") or ():
+        path = Path(raw)
+        folder = path.parent if path.name == "record.json" else path
+        if not (folder / "record.json").is_file():
+            raise pytest.UsageError(
+                f"--mt-replay={raw}: not a violation artifact folder (no record.json in it)"
+            )
+        folders.append(folder)
+    return folders
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -132,7 +232,25 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_OPTIONS] = _options(config)
     config.stash[_SUMMARY] = SessionSummary()
     config.stash[_CAMPAIGNS] = {}
+    config.stash[_REPLAY_RESULTS] = []
+    config.stash[_ARTIFACT_LIST] = []
+    config.stash[_REPLAYS] = _load_replays(config.stash[_OPTIONS].replay)
     config.pluginmanager.register(_SessionReporter(config), "pytest-metamorphic-reporter")
+
+
+def _load_replays(folders: tuple[Path, ...]) -> list[Any]:
+    if not folders:
+        return []
+    from pytest_metamorphic.core.errors import DataError
+    from pytest_metamorphic.reports.artifacts import load_artifact
+
+    artifacts = []
+    for folder in folders:
+        try:
+            artifacts.append(load_artifact(folder))
+        except DataError as error:
+            raise pytest.UsageError(f"--mt-replay: {error}") from None
+    return artifacts
 
 
 def _is_metamorphic(item: pytest.Item) -> bool:
@@ -144,6 +262,8 @@ def _campaign_of(item: pytest.Item) -> Any:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if config.stash[_REPLAYS]:
+        _select_replayed(config, items)
     enabled = config.stash[_OPTIONS].campaign
     for item in items:
         if _is_metamorphic(item):
@@ -152,6 +272,54 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker("metamorphic")
             if not enabled:
                 item.add_marker(pytest.mark.skip(reason="campaign: run with --mt-campaign"))
+
+
+def _select_replayed(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Keep only the tests that saved the replayed artifacts."""
+    wanted = {artifact.nodeid for artifact in config.stash[_REPLAYS]}
+    collected = {item.nodeid for item in items}
+    missing = sorted(wanted - collected)
+    if missing:
+        folders = [str(a.folder) for a in config.stash[_REPLAYS] if a.nodeid in missing]
+        raise pytest.UsageError(
+            f"--mt-replay: the test(s) {missing} that saved {folders} were not collected; "
+            "run pytest from the same root directory, with the test file on the command line"
+        )
+    keep = [item for item in items if item.nodeid in wanted]
+    dropped = [item for item in items if item.nodeid not in wanted]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+    items[:] = keep
+
+
+def _replayed_here(item: pytest.Item) -> list[Any]:
+    return [a for a in item.config.stash[_REPLAYS] if a.nodeid == item.nodeid]
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
+    artifacts = _replayed_here(pyfuncitem)
+    if not artifacts:
+        return None
+    spec = getattr(pyfuncitem.obj, "_metamorphic", None)
+    if spec is None:
+        raise pytest.UsageError(f"--mt-replay: {pyfuncitem.nodeid} is not a @metamorphic test")
+    from pytest_metamorphic.core.errors import MetamorphicViolation
+    from pytest_metamorphic.reports.replay import replay
+
+    names = list(inspect.signature(spec.function).parameters)[1:]
+    fixtures = {name: pyfuncitem.funcargs[name] for name in names}
+    results = [replay(artifact, spec, fixtures) for artifact in artifacts]
+    pyfuncitem.stash[_REPLAY_RESULTS] = results
+    failing = [result for result in results if result.still_fails]
+    if failing:
+        lines = [line for result in failing for line in result.lines()]
+        raise MetamorphicViolation(
+            "replayed violation(s) still fail:\n" + "\n".join(lines),
+            relation=failing[0].artifact.relation,
+            verdict=failing[0].verdict,
+        )
+    return True
 
 
 def _run_campaign_shard(item: pytest.Item) -> None:
@@ -182,13 +350,36 @@ def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
     if _campaign_of(item) is not None:
         _run_campaign_shard(item)
         return (yield)
-    if not _is_metamorphic(item):
+    if not _is_metamorphic(item) or _replayed_here(item):
         return (yield)
     options = item.config.stash[_OPTIONS]
-    recorder = Recorder(followups=options.followups, check_determinism=options.check_determinism)
+    recorder = Recorder(
+        followups=options.followups,
+        check_determinism=options.check_determinism,
+        minimize_budget=options.minimize_budget,
+        nodeid=item.nodeid,
+    )
+    if options.artifacts is not None:
+        recorder.on_violation = _ArtifactSink(options.artifacts, item, recorder)
     item.stash[_RECORDER] = recorder
     with recording(recorder):
         return (yield)
+
+
+class _ArtifactSink:
+    """Saves a test's violations; imports the writer only when the first one happens."""
+
+    def __init__(self, root: Path, item: pytest.Item, recorder: Recorder) -> None:
+        self.root, self.item, self.recorder = root, item, recorder
+
+    def __call__(self, record: Any, final: bool) -> str | None:
+        writer = self.item.stash.get(_WRITER, None)
+        if writer is None:
+            from pytest_metamorphic.reports.artifacts import ArtifactWriter
+
+            writer = ArtifactWriter(self.root, self.item.nodeid, self.recorder)
+            self.item.stash[_WRITER] = writer
+        return writer(record, final)
 
 
 @pytest.hookimpl(wrapper=True)
@@ -198,6 +389,12 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         if recorder is not None:
             # user_properties travel with the report: to JUnit XML and across xdist.
             item.user_properties.extend(junit_properties(recorder))
+        writer = item.stash.get(_WRITER, None)
+        if writer is not None:
+            for folder in dict.fromkeys(writer.written):
+                item.user_properties.append((ARTIFACT_PROPERTY, str(folder)))
+        for result in item.stash.get(_REPLAY_RESULTS, []):
+            item.user_properties.append((REPLAY_PROPERTY, json.dumps(result.to_json())))
         result = item.stash.get(_CAMPAIGN_RESULT, None)
         if result is not None:
             item.user_properties.append((CAMPAIGN_PROPERTY, json.dumps(result.to_json())))
@@ -223,6 +420,11 @@ class _SessionReporter:
         self.config.stash[_SUMMARY].add_report(
             report.nodeid, report.outcome, report.user_properties
         )
+        for key, value in report.user_properties:
+            if key == ARTIFACT_PROPERTY:
+                self.config.stash[_ARTIFACT_LIST].append((report.nodeid, value))
+            elif key == REPLAY_PROPERTY:
+                self.config.stash[_REPLAY_RESULTS].append(json.loads(value))
         blob = next((v for k, v in report.user_properties if k == CAMPAIGN_PROPERTY), None)
         if blob is not None:
             from pytest_metamorphic.core.campaign import result_from_json
@@ -243,6 +445,18 @@ class _SessionReporter:
             terminalreporter.write_sep("=", "metamorphic relations")
             for line in summary.format_table():
                 terminalreporter.write_line(line)
+        artifacts = self.config.stash[_ARTIFACT_LIST]
+        if artifacts:
+            terminalreporter.write_sep("=", "metamorphic violation artifacts")
+            for nodeid, folder in artifacts:
+                terminalreporter.write_line(f"{nodeid}: {folder}")
+            terminalreporter.write_line("replay one: pytest --mt-replay <folder>")
+        replays = self.config.stash[_REPLAY_RESULTS]
+        if replays:
+            terminalreporter.write_sep("=", "metamorphic replay")
+            for result in replays:
+                for line in result["lines"]:
+                    terminalreporter.write_line(line)
         campaigns = self.config.stash[_CAMPAIGNS]
         if campaigns:
             from pytest_metamorphic.reports.campaign import format_table

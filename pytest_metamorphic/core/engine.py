@@ -518,9 +518,7 @@ def _violation(record: ViolationRecord, saved: str | None) -> MetamorphicViolati
         lines.append(f"  transform parameters: {_short_params(item.params)}")
     lines.append(f"  {verdict.explanation}")
     if reduction is not None and record.verdict.explanation != verdict.explanation:
-        lines.append(
-            f"  with all {reduction.original_size} elements: {record.verdict.explanation}"
-        )
+        lines.append(f"  with all {reduction.original_size} elements: {record.verdict.explanation}")
     lines.append(f"  source output:    {describe_value(record.source_output)}")
     lines.append(f"  follow-up output: {describe_value(record.minimal_output)}")
     if saved:

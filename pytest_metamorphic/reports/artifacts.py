@@ -1,0 +1,578 @@
+"""Violation artifacts: everything needed to look at, and re-run, one metamorphic failure.
+
+One folder per violation, ``<root>/<test>/<relation>/``::
+
+    record.json        relation, verdict, Hypothesis seed, transform parameters (full and
+                       minimal), the minimization (k, indices, proven or not, SUT calls),
+                       both outputs, the hidden obstacles, and how to replay
+    source.pcd         the source frame's cloud (LiDAR sources), plus source.bag when the
+    followup.pcd       frame came from a bag; the follow-up is the *minimal* one
+    perturbation.pcd   the minimal injected points (point perturbations only)
+    birdseye.png       ROI, points, boxes of O and O', hidden obstacle, minimal points
+
+Inputs that are not frames are stored inline in ``record.json`` when they survive a JSON
+round trip exactly (numbers, strings, lists, dicts), so those artifacts replay too.
+No pickle anywhere: every file is JSON, PCD, a ROS bag or PNG.
+
+A folder is written into a hidden temporary sibling and renamed into place, so it is
+either complete or absent. The engine reports the first violation of each relation at
+once (before Hypothesis starts shrinking: an interrupted run still leaves it), then the
+final, shrunk and reduced one, which replaces it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+import uuid
+import zlib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pytest_metamorphic.core.comparison import describe_value
+from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.perturbation import as_reducible
+
+__all__ = [
+    "RECORD",
+    "Artifact",
+    "ArtifactWriter",
+    "check_folder",
+    "load_artifact",
+    "load_case",
+    "to_jsonable",
+    "write_artifact",
+]
+
+FORMAT = "pytest-metamorphic violation artifact"
+VERSION = 1
+RECORD = "record.json"
+_MAX_ARRAY = 100_000
+_FRAME_RE = re.compile(r"^(?P<path>.*) \[(?P<topic>/\S*) #(?P<index>\d+)\]$")
+_BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+# Perturbations that can be rebuilt from their JSON (type name -> module, class, field).
+_PERTURBATIONS = {
+    "NoiseOutsideROI": ("pytest_metamorphic.lidar.perturb", "points"),
+    "NoiseInsideROI": ("pytest_metamorphic.lidar.perturb", "points"),
+    "DropPoints": ("pytest_metamorphic.lidar.perturb", "indices"),
+    "DuplicatePoints": ("pytest_metamorphic.lidar.perturb", "indices"),
+}
+
+
+# -- JSON ---------------------------------------------------------------------------------------
+
+
+def _is_box(value: Any) -> bool:
+    return type(value).__name__ == "Box" and type(value).__module__.endswith("lidar.obstacles")
+
+
+def _box_json(box: Any) -> dict[str, Any]:
+    return {
+        "label": box.label,
+        "center": list(box.center),
+        "size": list(box.size),
+        "yaw": box.yaw,
+        "score": box.score,
+        "points": box.points,
+        "describe": box.describe(),
+    }
+
+
+def to_jsonable(value: Any, *, depth: int = 0) -> Any:
+    """A JSON-safe rendering of ``value`` for records (lossless where it matters).
+
+    Boxes become dicts, numpy values lists or numbers, reducible perturbations their
+    ``to_json()``; anything else unknown becomes ``{"repr": ...}``. Non-finite floats
+    become the strings ``"nan"``, ``"inf"``, ``"-inf"``.
+    """
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else str(value)
+    if depth > 20:
+        return {"repr": describe_value(value)}
+    if _is_box(value):
+        return _box_json(value)
+    if isinstance(value, Mapping):
+        return {str(key): to_jsonable(item, depth=depth + 1) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(item, depth=depth + 1) for item in value]
+    module = type(value).__module__
+    if module == "numpy":
+        if hasattr(value, "shape") and getattr(value, "ndim", 0) > 0:
+            if value.size > _MAX_ARRAY:
+                return {"shape": list(value.shape), "dtype": str(value.dtype)}
+            return to_jsonable(value.tolist(), depth=depth + 1)
+        return to_jsonable(value.item(), depth=depth + 1)
+    reducible = as_reducible(value)
+    to_json = getattr(reducible, "to_json", None)
+    if callable(to_json):
+        return to_json()
+    return {"repr": describe_value(value)}
+
+
+def _round_trips(value: Any) -> bool:
+    try:
+        text = json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):
+        return False
+    loaded = json.loads(text)
+    return type(loaded) is type(value) and loaded == value
+
+
+# -- inputs -------------------------------------------------------------------------------------
+
+
+def _roi_json(roi: Any) -> dict[str, Any] | None:
+    if roi is None:
+        return None
+    from pytest_metamorphic.lidar.roi import ROI
+
+    if not isinstance(roi, ROI):
+        return {"repr": describe_value(roi)}
+    return {
+        "polygons": [polygon.tolist() for polygon in roi.polygons],
+        "cell_size": roi.cell_size,
+        "extend_dist": roi.extend_dist,
+        "raster_range": roi.raster_range,
+    }
+
+
+def _bag_origin(origin: str) -> tuple[str, str] | None:
+    """``(bag path, topic)`` when a frame's origin names a bag message."""
+    match = _FRAME_RE.match(origin)
+    if match is None:
+        return None
+    path = Path(match["path"])
+    if path.suffix.lower() in _BAG_SUFFIXES or (path / "metadata.yaml").is_file():
+        return str(path), match["topic"]
+    return None
+
+
+def _encode_input(value: Any, folder: Path, name: str) -> dict[str, Any]:
+    """Write ``value`` under ``folder`` (or inline) and describe how to read it back."""
+    from pytest_metamorphic.lidar.frame import Frame
+
+    if isinstance(value, Frame):
+        from pytest_metamorphic.lidar.io import write_bag, write_pcd
+
+        write_pcd(value.cloud, folder / f"{name}.pcd")
+        spec: dict[str, Any] = {
+            "kind": "frame",
+            "cloud": f"{name}.pcd",
+            "points": len(value.cloud),
+            "roi": _roi_json(value.roi),
+            "boxes": [_box_json(box) for box in value.boxes],
+            "pose": None if value.pose is None else value.pose.tolist(),
+            "origin": value.source,
+            "index": value.index,
+        }
+        bag = _bag_origin(value.source)
+        if bag is not None:
+            write_bag(value.cloud, folder / f"{name}.bag", topic=bag[1])
+            spec["bag"] = f"{name}.bag"
+            spec["topic"] = bag[1]
+        return spec
+    if _round_trips(value):
+        return {"kind": "json", "value": value}
+    return {
+        "kind": "unsupported",
+        "type": f"{type(value).__module__}.{type(value).__qualname__}",
+        "repr": describe_value(value),
+    }
+
+
+def _decode_input(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
+    kind = spec.get("kind")
+    if kind == "json":
+        return spec["value"]
+    if kind == "frame":
+        from pytest_metamorphic.lidar.frame import Frame
+        from pytest_metamorphic.lidar.io import read_pcd
+        from pytest_metamorphic.lidar.obstacles import Box
+        from pytest_metamorphic.lidar.roi import ROI
+
+        cloud = read_pcd(folder / spec["cloud"], zeros="keep")
+        roi = spec.get("roi")
+        if roi is not None:
+            if "polygons" not in roi:
+                raise DataError(
+                    f"{name}: the ROI ({roi.get('repr')}) is not an ROI and cannot be restored",
+                    path=folder / RECORD,
+                )
+            roi = ROI.from_polygons(
+                roi["polygons"],
+                cell_size=roi["cell_size"],
+                extend_dist=roi["extend_dist"],
+                raster_range=roi["raster_range"],
+            )
+        boxes = tuple(
+            Box(b["center"], b["size"], b["yaw"], b["label"], b["score"], b["points"])
+            for b in spec.get("boxes", ())
+        )
+        return Frame(
+            cloud,
+            roi=roi,
+            boxes=boxes,
+            pose=spec.get("pose"),
+            source=spec.get("origin", ""),
+            index=spec.get("index", 0),
+        )
+    raise DataError(
+        f"the {name} input ({spec.get('type', kind)}: {spec.get('repr', '')}) was not saved in "
+        "a form that can be read back; only LiDAR frames and JSON values replay",
+        path=folder / RECORD,
+    )
+
+
+def _decode_params(params: Mapping[str, Any]) -> dict[str, Any]:
+    """Transform parameters with known perturbations rebuilt as objects."""
+    import importlib
+
+    import numpy as np
+
+    decoded: dict[str, Any] = {}
+    for key, value in params.items():
+        kind = value.get("type") if isinstance(value, Mapping) else None
+        if kind in _PERTURBATIONS:
+            module, attribute = _PERTURBATIONS[kind]
+            cls = getattr(importlib.import_module(module), kind)
+            array = np.asarray(value[attribute], dtype=np.float32 if attribute == "points" else int)
+            if attribute == "points":
+                array = array.reshape(-1, 4)
+            value = cls(array)
+        decoded[key] = value
+    return decoded
+
+
+# -- writing ------------------------------------------------------------------------------------
+
+
+def _slug(text: str, limit: int = 60) -> str:
+    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_.") or "x"
+    if len(cleaned) <= limit:
+        return cleaned
+    digest = f"{zlib.crc32(text.encode('utf-8')):08x}"
+    return f"{cleaned[: limit - 9]}-{digest}"
+
+
+def _boxes_or_none(value: Any) -> list[Any] | None:
+    if isinstance(value, (list, tuple)) and all(_is_box(box) for box in value):
+        return list(value)
+    return None
+
+
+def _hidden(record: Any) -> list[Any]:
+    """What the violation lost: obstacles for box outputs, else unmatched elements."""
+    source_boxes = _boxes_or_none(record.source_output)
+    followup_boxes = _boxes_or_none(record.minimal_output)
+    if source_boxes is not None and followup_boxes is not None:
+        from pytest_metamorphic.lidar.minimize import lost_obstacles
+
+        return [source_boxes[i] for i in lost_obstacles(source_boxes, followup_boxes)]
+    details = record.minimal_verdict.details
+    unmatched = details.get("unmatched") if isinstance(details, Mapping) else None
+    if isinstance(unmatched, list) and record.minimal_verdict.relation.startswith("subset"):
+        source = record.source_output
+        return [source[i] for i in unmatched if isinstance(i, int) and i < len(source)]
+    return []
+
+
+def _minimization_json(record: Any) -> dict[str, Any] | None:
+    reduction = record.reduction
+    if reduction is None:
+        return None
+    perturbation = to_jsonable(reduction.perturbation)
+    return {
+        "key": reduction.key,
+        "original_size": reduction.original_size,
+        "size": reduction.size,
+        "indices": list(reduction.indices),
+        "proven_minimal": reduction.proven_minimal,
+        "sut_calls": reduction.calls,
+        "budget": reduction.budget,
+        "crashes": reduction.crashes,
+        "fails_without_elements": reduction.fails_without_elements,
+        "summary": reduction.summary(),
+        "perturbation": perturbation,
+    }
+
+
+def _injected_points(value: Any) -> Any:
+    """(n, 4) points of a point perturbation in ``params``, or None."""
+    for item in value.values() if isinstance(value, Mapping) else ():
+        points = getattr(as_reducible(item), "points", None)
+        if points is not None:
+            return points
+    return None
+
+
+def write_artifact(
+    record: Any, folder: str | os.PathLike[str], *, status: str, sut_calls: int | None = None
+) -> Path:
+    """Write one violation's artifact folder atomically (replacing an older one).
+
+    Parameters
+    ----------
+    record : ViolationRecord
+        From the engine (:class:`pytest_metamorphic.core.engine.ViolationRecord`).
+    folder : path-like
+        The artifact folder to create or replace; its parent is created.
+    status : str
+        ``"found"`` (first sight, before shrinking) or ``"final"``.
+    sut_calls : int, optional
+        SUT calls the test had made when the violation was raised.
+
+    Returns
+    -------
+    Path
+        ``folder``.
+    """
+    target = Path(folder)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = target.parent / f".{target.name}.{uuid.uuid4().hex[:8]}.tmp"
+    staging.mkdir()
+    try:
+        _fill(record, staging, status=status, sut_calls=sut_calls, final_path=target)
+        _swap_in(staging, target)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return target
+
+
+def _swap_in(staging: Path, target: Path) -> None:
+    """Move ``staging`` to ``target``; an existing ``target`` is replaced."""
+    if target.exists():
+        old = target.parent / f".{target.name}.{uuid.uuid4().hex[:8]}.old"
+        os.replace(target, old)
+        os.replace(staging, target)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(staging, target)
+
+
+def _fill(
+    record: Any, folder: Path, *, status: str, sut_calls: int | None, final_path: Path
+) -> None:
+    followup = record.minimal_followup
+    source_spec = _encode_input(record.source, folder, "source")
+    followup_spec = _encode_input(followup.input, folder, "followup")
+    minimal_points = _injected_points(followup.params)
+    if minimal_points is not None and source_spec["kind"] == "frame":
+        from pytest_metamorphic.lidar.cloud import PointCloud
+        from pytest_metamorphic.lidar.io import write_pcd
+
+        minimal_cloud = PointCloud(minimal_points, name="minimal perturbation")
+        write_pcd(minimal_cloud, folder / "perturbation.pcd")
+    hidden = _hidden(record)
+    picture, picture_note = None, ""
+    source_boxes = _boxes_or_none(record.source_output)
+    followup_boxes = _boxes_or_none(record.minimal_output)
+    if source_spec["kind"] == "frame" and source_boxes is not None and followup_boxes is not None:
+        try:
+            from pytest_metamorphic.reports.birdseye import draw_birdseye
+        except ImportError as error:  # matplotlib is an optional extra
+            picture_note = f"no picture: {error}"
+        else:
+            draw_birdseye(
+                folder / "birdseye.png",
+                source=record.source,
+                source_boxes=source_boxes,
+                followup_boxes=followup_boxes,
+                hidden=hidden,
+                injected=_injected_points(record.followup.params),
+                minimal=minimal_points,
+                title=_picture_title(record),
+            )
+            picture = "birdseye.png"
+    reduction = record.reduction
+    document = {
+        "format": FORMAT,
+        "version": VERSION,
+        "status": status,
+        "nodeid": record.nodeid,
+        "relation": record.relation,
+        "check": record.minimal_verdict.relation,
+        "followup_index": record.index,
+        "followups": record.total,
+        "explanation": record.minimal_verdict.explanation,
+        "explanation_unreduced": record.verdict.explanation,
+        "details": to_jsonable(record.minimal_verdict.details),
+        "seed": to_jsonable(record.seed),
+        "params": to_jsonable(followup.params),
+        "params_unreduced": to_jsonable(record.followup.params),
+        "minimization": _minimization_json(record),
+        "minimization_note": record.reduction_note,
+        "sut_calls": {
+            "test": sut_calls,
+            "minimization": reduction.calls if reduction else 0,
+        },
+        "source": source_spec,
+        "followup": followup_spec,
+        "outputs": {
+            "source": to_jsonable(record.source_output),
+            "followup": to_jsonable(record.minimal_output),
+            "followup_unreduced": to_jsonable(record.followup_output),
+        },
+        "hidden": to_jsonable(hidden),
+        "picture": picture,
+        "picture_note": picture_note,
+        "replay": f"pytest --mt-replay {final_path}",
+    }
+    files = sorted(p.name for p in folder.iterdir())
+    document["files"] = [*files, RECORD]
+    with (folder / RECORD).open("w", encoding="utf-8") as handle:
+        json.dump(document, handle, indent=1, allow_nan=False)
+
+
+def _picture_title(record: Any) -> str:
+    reduction = record.reduction
+    lines = [f"{record.relation}", record.minimal_verdict.explanation[:110]]
+    if reduction is not None:
+        proof = "proven 1-minimal" if reduction.proven_minimal else "NOT proven minimal"
+        lines.append(
+            f"{reduction.size} of {reduction.original_size} {reduction.key} elements, {proof}, "
+            f"{reduction.calls} SUT calls"
+        )
+    return "\n".join(lines)
+
+
+class ArtifactWriter:
+    """The recorder's ``on_violation``: saves violations of one test under ``root``.
+
+    The first violation of each relation is saved as soon as it is seen (status
+    ``"found"``); the final one (Hypothesis' last replay, reduced) replaces it. Writing
+    never raises: a failure is reported in the violation message instead.
+    """
+
+    def __init__(self, root: str | os.PathLike[str], nodeid: str, recorder: Any = None) -> None:
+        self.root = Path(root)
+        self.nodeid = nodeid
+        self.recorder = recorder
+        self._found: set[str] = set()
+        self._finals: dict[str, int] = {}
+        self.written: list[Path] = []
+
+    def folder(self, relation: str, final_number: int = 1) -> Path:
+        suffix = "" if final_number <= 1 else f"-{final_number}"
+        test = _slug(self.nodeid.replace("::", "__").replace("/", "_") or "test", 80)
+        return self.root / test / f"{_slug(relation)}{suffix}"
+
+    def __call__(self, record: Any, final: bool) -> str | None:
+        if final:
+            number = self._finals.get(record.relation, 0) + 1
+            self._finals[record.relation] = number
+            folder = self.folder(record.relation, number)
+        elif record.relation in self._found:
+            return None
+        else:
+            folder = self.folder(record.relation)
+        self._found.add(record.relation)
+        calls = getattr(self.recorder, "sut_calls", None)
+        try:
+            write_artifact(record, folder, status="final" if final else "found", sut_calls=calls)
+        except Exception as error:
+            return f"not saved to {folder} ({type(error).__name__}: {error})"
+        self.written.append(folder)
+        return f"{folder}  (replay: pytest --mt-replay {folder})"
+
+
+# -- reading ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Artifact:
+    """A saved violation, read back.
+
+    Attributes
+    ----------
+    folder : Path
+    record : dict
+        The parsed ``record.json``.
+    """
+
+    folder: Path
+    record: Mapping[str, Any]
+
+    @property
+    def nodeid(self) -> str:
+        return str(self.record["nodeid"])
+
+    @property
+    def relation(self) -> str:
+        return str(self.record["relation"])
+
+    def source(self) -> Any:
+        """The source input, rebuilt from the saved files."""
+        return _decode_input(self.record["source"], self.folder, "source")
+
+    def followup(self) -> Any:
+        """The (minimal) follow-up as a :class:`~pytest_metamorphic.core.engine.Followup`."""
+        from pytest_metamorphic.core.engine import Followup
+
+        value = _decode_input(self.record["followup"], self.folder, "followup")
+        return Followup(value, _decode_params(self.record.get("params") or {}))
+
+
+def load_artifact(path: str | os.PathLike[str]) -> Artifact:
+    """Read an artifact folder (or its ``record.json``).
+
+    Raises
+    ------
+    DataError
+        The folder has no readable record, or the record is not an artifact.
+    """
+    folder = Path(path)
+    if folder.name == RECORD and folder.is_file():
+        folder = folder.parent
+    record_path = folder / RECORD
+    if not record_path.is_file():
+        raise DataError(f"not an artifact folder: no {RECORD} in it", path=folder)
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise DataError(f"cannot read the record: {error}", path=record_path) from None
+    if not isinstance(record, dict) or record.get("format") != FORMAT:
+        raise DataError("not a pytest-metamorphic artifact record", path=record_path)
+    if record.get("version") != VERSION:
+        raise DataError(
+            f"artifact version {record.get('version')!r}; this pytest-metamorphic reads "
+            f"version {VERSION}",
+            path=record_path,
+        )
+    for key in ("nodeid", "relation", "source", "followup"):
+        if key not in record:
+            raise DataError(f"the record has no {key!r}", path=record_path)
+    return Artifact(folder, record)
+
+
+def load_case(path: str | os.PathLike[str]) -> Any:
+    """A :class:`~pytest_metamorphic.core.engine.MetamorphicCase` for ``@example(case=...)``.
+
+    The case holds the saved source and the saved (minimal) follow-up for the saved
+    relation only; the engine runs no other relation on it. Use it to keep a found
+    violation as a regression example::
+
+        @example(case=load_case(Path(__file__).parent / "mt-regressions" / "MR1"))
+        @metamorphic(...)
+        def test_perception(frame): ...
+    """
+    from pytest_metamorphic.core.engine import MetamorphicCase
+
+    artifact = load_artifact(path)
+    return MetamorphicCase(artifact.source(), {artifact.relation: (artifact.followup(),)})
+
+
+def check_folder(path: str | os.PathLike[str]) -> Path:
+    """``path`` as an artifact folder, or InvalidArgument naming it."""
+    folder = Path(path)
+    if folder.name == RECORD:
+        folder = folder.parent
+    if not (folder / RECORD).is_file():
+        raise InvalidArgument(f"{path} is not an artifact folder (no {RECORD})")
+    return folder
