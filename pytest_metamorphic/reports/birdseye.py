@@ -33,11 +33,12 @@ COLORS = {
     "source_box": "#1f5fbf",
     "followup_box": "#e07b00",
     "hidden": "#e00000",
+    "hidden_points": "#6b0000",
 }
 _SIZE = (16.0, 8.5)  # inches
 _DPI = 100
 _MAX_CLOUD_POINTS = 80_000
-_ZOOM_MIN_HALF_WIDTH = 10.0
+_ZOOM_MIN_HALF_WIDTH = 6.0
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,7 @@ def _layers(
     source_boxes: Sequence[Any],
     followup_boxes: Sequence[Any],
     hidden: Sequence[Any],
+    hidden_points: NDArray[np.float64],
     scale: float,
 ) -> None:
     from matplotlib.patches import Polygon
@@ -243,13 +245,19 @@ def draw_birdseye(
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    cloud = _xy(getattr(getattr(source, "cloud", None), "points", None), "source cloud")
+    raw = getattr(getattr(source, "cloud", None), "points", None)
+    cloud = _xy(raw, "source cloud")
+    hidden = list(hidden)
+    # The hidden obstacles' own points, from the full cloud (before thinning it out).
+    inside = np.zeros(len(cloud), dtype=bool)
+    for box in hidden if raw is not None else ():
+        inside |= box.contains(raw)
+    hidden_points = cloud[inside]
     if len(cloud) > _MAX_CLOUD_POINTS:
         step = math.ceil(len(cloud) / _MAX_CLOUD_POINTS)
         cloud = cloud[::step]
     injected_xy = _xy(injected, "injected")
     minimal_xy = _xy(minimal, "minimal")
-    hidden = list(hidden)
     figure = Figure(figsize=_SIZE, dpi=_DPI)
     FigureCanvasAgg(figure)
     overview, zoom = figure.subplots(1, 2)
@@ -261,9 +269,10 @@ def draw_birdseye(
         "source_boxes": list(source_boxes),
         "followup_boxes": list(followup_boxes),
         "hidden": hidden,
+        "hidden_points": hidden_points,
     }
     _layers(overview, scale=1.0, **layers)
-    _layers(zoom, scale=4.0, **layers)
+    _layers(zoom, scale=8.0, **layers)
     x0, x1, y0, y1 = _overview_limits(cloud, np.concatenate([injected_xy, minimal_xy]), hidden)
     overview.set_xlim(x0, x1)
     overview.set_ylim(y0, y1)
@@ -290,6 +299,14 @@ def draw_birdseye(
             label=f"O': follow-up obstacles ({len(followup_boxes)})",
         ),
         Patch(facecolor=COLORS["hidden"], alpha=0.55, label=f"hidden ({len(hidden)})"),
+        Line2D(
+            [],
+            [],
+            marker="o",
+            linestyle="",
+            color=COLORS["hidden_points"],
+            label=f"points of the hidden obstacle(s) ({len(hidden_points)})",
+        ),
         Line2D([], [], marker="o", linestyle="", color=COLORS["injected"], label="injected points"),
         Line2D(
             [],
