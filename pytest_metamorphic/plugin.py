@@ -298,6 +298,7 @@ def _replayed_here(item: pytest.Item) -> list[Any]:
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
+    __tracebackhide__ = True
     artifacts = _replayed_here(pyfuncitem)
     if not artifacts:
         return None
@@ -347,6 +348,7 @@ def _slug(name: str) -> str:
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
+    __tracebackhide__ = True
     if _campaign_of(item) is not None:
         _run_campaign_shard(item)
         return (yield)
