@@ -512,6 +512,7 @@ def _violation(record: ViolationRecord, saved: str | None) -> MetamorphicViolati
     if reduction is not None:
         lines.append(f"  minimal follow-up: {reduction.summary()}")
         lines.extend(f"    {line}" for line in reduction.element_lines())
+        lines.extend(f"  {line}" for line in reduction.effect_lines(record.source_output))
     elif record.reduction_note:
         lines.append(f"  {record.reduction_note}")
     if item.params:

@@ -35,6 +35,8 @@ class Reducible(Protocol):
       chunks, so putting the likely culprits together saves SUT calls; the proof of
       1-minimality does not depend on the order.
     * ``describe_elements(limit) -> list of str``: one line per element for messages.
+    * ``describe_effect(source_output, followup_output) -> list of str``: what the
+      elements do to the output (e.g. "hidden: pedestrian at (14.2, 1.1), 60 m away").
     * ``to_json() -> dict``: a JSON-safe description for artifacts.
     """
 

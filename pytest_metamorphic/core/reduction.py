@@ -99,6 +99,16 @@ class Reduction:
         crashed = f"; the system crashed on {self.crashes} subset(s)" if self.crashes else ""
         return f"{kept}, {status}, {self.calls} SUT calls{crashed}"
 
+    def effect_lines(self, source_output: Any) -> list[str]:
+        """What the kept elements do (e.g. which obstacle they hide), when the transform says."""
+        describe = getattr(self.perturbation, "describe_effect", None)
+        if not callable(describe):
+            return []
+        try:
+            return [str(line) for line in describe(source_output, self.output)]
+        except Exception as error:  # decoration only: never replace the violation itself
+            return [f"(describe_effect failed: {type(error).__name__}: {error})"]
+
     def element_lines(self, limit: int = _SHOWN_ELEMENTS) -> list[str]:
         """One line per kept element (at most ``limit``), for failure messages."""
         describe = getattr(self.perturbation, "describe_elements", None)

@@ -143,6 +143,26 @@ def _rank_by_distance(
     return np.argsort(distance, kind="stable").tolist()
 
 
+def _effect_lines(xy: NDArray[np.floating], source_output: Any, followup_output: Any) -> list[str]:
+    """ "hidden: <obstacle>, <distance> from these points" for each lost obstacle."""
+    try:
+        source = _boxes(source_output, "source")
+        lost = [source[i] for i in lost_obstacles(source, _boxes(followup_output, "follow-up"))]
+    except InvalidArgument:
+        return []
+    lines = []
+    for box in lost:
+        distance = footprint_distances(xy, [box]) if len(xy) else np.empty(0)
+        if len(distance) == 0:
+            where = ""
+        elif len(distance) == 1:
+            where = f", {distance[0]:.1f} m from this point"
+        else:
+            where = f", {distance.min():.1f} to {distance.max():.1f} m from these points"
+        lines.append(f"hidden: {box.describe()}{where}")
+    return lines
+
+
 def _point_line(x: float, y: float, z: float, intensity: float) -> str:
     return (
         f"({x:.2f}, {y:.2f}, {z:.2f}) intensity {intensity:.3g}, "
@@ -185,6 +205,10 @@ class InjectedPointsReduction:
 
     def ranking(self, source: Any, source_output: Any, followup_output: Any) -> list[int]:
         return _rank_by_distance(self.points, source_output, followup_output)
+
+    def describe_effect(self, source_output: Any, followup_output: Any) -> list[str]:
+        """One line per obstacle the follow-up lost, with its distance to the points."""
+        return _effect_lines(self.points, source_output, followup_output)
 
     def describe_elements(self, limit: int = 10) -> list[str]:
         lines = [_point_line(*map(float, row)) for row in self.points[:limit]]
@@ -236,6 +260,13 @@ class IndexEditReduction:
         self._source = source
         xy = source.cloud.points[np.minimum(self.indices, len(source.cloud) - 1), :2]
         return _rank_by_distance(xy, source_output, followup_output)
+
+    def describe_effect(self, source_output: Any, followup_output: Any) -> list[str]:
+        """One line per obstacle the follow-up lost, with its distance to the edited points."""
+        if self._source is None:
+            return _effect_lines(np.empty((0, 2)), source_output, followup_output)
+        rows = self.indices[self.indices < len(self._source.cloud)]
+        return _effect_lines(self._source.cloud.points[rows, :2], source_output, followup_output)
 
     def describe_elements(self, limit: int = 10) -> list[str]:
         verb = "dropped" if isinstance(self.perturbation, DropPoints) else "repeated"

@@ -163,6 +163,7 @@ def test_engine_reports_k_points_the_hidden_obstacle_and_calls() -> None:
         record.source_output[i] for i in lost_obstacles(record.source_output, record.minimal_output)
     ]
     assert hidden and f"({hidden[0].describe()}) of the source has no match" in message
+    assert f"  hidden: {hidden[0].describe()}, " in message and " m from th" in message
 
 
 def test_ranking_puts_points_near_the_lost_obstacle_first() -> None:
