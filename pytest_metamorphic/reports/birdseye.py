@@ -340,13 +340,13 @@ def _annotate(ax: Any, hidden: Sequence[Any], minimal: NDArray[np.float64]) -> N
     """List the hidden obstacles and the minimal points in a corner of the close-up."""
     lines = [f"hidden: {box.describe()}" for box in hidden[:4]]
     if len(minimal):
+        from pytest_metamorphic.lidar.minimize import footprint_distances
+
+        # Distance to the nearest hidden footprint, as in the violation message.
+        distances = footprint_distances(minimal, hidden)
         lines.append(f"{len(minimal)} minimal point(s):")
-        for x, y in minimal[:8]:
-            nearest = min(
-                (math.hypot(x - box.center[0], y - box.center[1]) for box in hidden),
-                default=math.nan,
-            )
-            away = "" if math.isnan(nearest) else f", {nearest:.1f} m from it"
+        for (x, y), nearest in zip(minimal[:8], distances[:8], strict=False):
+            away = f", {nearest:.1f} m from a hidden obstacle" if math.isfinite(nearest) else ""
             lines.append(f"  ({x:.1f}, {y:.1f}){away}")
         if len(minimal) > 8:
             lines.append(f"  ... {len(minimal) - 8} others")
