@@ -277,48 +277,58 @@ class _Runner:
                     self._confirm_deterministic(case, source_output, fixtures, mr, stats)
                     if stats:
                         stats.violations += 1
-                    final = _in_final_run()
-                    reduction, note = (
-                        self._reduce(case.source, source_output, output, item, index, mr, fixtures)
-                        if final
-                        else (None, "")
+                    raise self._violation(
+                        case, mr, item, index, len(items), fixtures, output, verdict, source_output
                     )
-                    record = ViolationRecord(
-                        nodeid=recorder.nodeid if recorder else "",
-                        relation=mr.name,
-                        check=verdict.relation,
-                        index=index,
-                        total=len(items),
-                        source=case.source,
-                        followup=item,
-                        source_output=source_output,
-                        followup_output=output,
-                        verdict=verdict,
-                        reduction=reduction,
-                        reduction_note=note,
-                        seed=_hypothesis_seed(),
-                    )
-                    saved = None
-                    if recorder:
-                        recorder.violations.append(
-                            {
-                                "relation": mr.name,
-                                "index": index,
-                                "explanation": verdict.explanation,
-                                **(
-                                    {
-                                        "minimal_size": reduction.size,
-                                        "original_size": reduction.original_size,
-                                        "proven_minimal": reduction.proven_minimal,
-                                        "minimize_calls": reduction.calls,
-                                    }
-                                    if reduction
-                                    else {}
-                                ),
-                            }
-                        )
-                        saved = _save(recorder, record, final)
-                    raise _violation(record, saved)
+
+    def _violation(
+        self,
+        case: MetamorphicCase,
+        mr: MetamorphicRelation,
+        item: Followup,
+        index: int,
+        total: int,
+        fixtures: dict[str, Any],
+        output: Any,
+        verdict: Verdict,
+        source_output: Any,
+    ) -> MetamorphicViolation:
+        """Reduce (in the final run), record and save a confirmed violation; the error to raise."""
+        recorder = current_recorder()
+        final = _in_final_run()
+        reduction, note = (
+            self._reduce(case.source, source_output, output, item, index, mr, fixtures)
+            if final
+            else (None, "")
+        )
+        record = ViolationRecord(
+            nodeid=recorder.nodeid if recorder else "",
+            relation=mr.name,
+            check=verdict.relation,
+            index=index,
+            total=total,
+            source=case.source,
+            followup=item,
+            source_output=source_output,
+            followup_output=output,
+            verdict=verdict,
+            reduction=reduction,
+            reduction_note=note,
+            seed=_hypothesis_seed(),
+        )
+        saved = None
+        if recorder:
+            summary = {"relation": mr.name, "index": index, "explanation": verdict.explanation}
+            if reduction:
+                summary.update(
+                    minimal_size=reduction.size,
+                    original_size=reduction.original_size,
+                    proven_minimal=reduction.proven_minimal,
+                    minimize_calls=reduction.calls,
+                )
+            recorder.violations.append(summary)
+            saved = _save(recorder, record, final)
+        return _violation_error(record, saved)
 
     def _reduce(
         self,
@@ -501,7 +511,7 @@ def _save(recorder: Recorder, record: ViolationRecord, final: bool) -> str | Non
     return recorder.on_violation(record, final)
 
 
-def _violation(record: ViolationRecord, saved: str | None) -> MetamorphicViolation:
+def _violation_error(record: ViolationRecord, saved: str | None) -> MetamorphicViolation:
     reduction = record.reduction
     verdict = record.minimal_verdict
     item = record.minimal_followup
