@@ -6,9 +6,10 @@ camera wedge the labels cover) and numpy seed for which n points outside the ROI
 mutant lose an obstacle. Each failure is then reduced twice, from the same n points:
 
 * **ddmin** (:func:`pytest_metamorphic.core.reduction.reduce_followup`, what the engine
-  runs): points ranked by distance to the lost obstacle, ddmin to a 1-minimal set, within
-  ``--budget`` SUT calls. Its result is *proven* 1-minimal when the last round (every
-  one-point removal) completed.
+  runs): points ranked by distance to the lost obstacle, ddmin to a 1-minimal set within
+  4/5 of ``--budget`` SUT calls, then (if not proven yet) a second ddmin pass with the
+  points ordered by height. Its result is *proven* 1-minimal when a pass's last round
+  (every one-point removal) completed.
 * **Hypothesis alone**: the project's noise strategy (``noise_outside_roi(frame,
   min_size=1, max_size=n)``, one 32-bit seed per point) with the failing seed list put in
   an in-memory example database, so that Hypothesis replays exactly this failure and
@@ -226,7 +227,7 @@ def main() -> None:
     parser.add_argument("--sizes", default="100,1000")
     parser.add_argument("--frames", default="0,1,2,3,4,5")
     parser.add_argument("--seeds", type=int, default=10, help="numpy seeds tried per frame")
-    parser.add_argument("--budget", type=int, default=5000, help="ddmin SUT-call budget")
+    parser.add_argument("--budget", type=int, default=10000, help="ddmin SUT-call budget")
     parser.add_argument("--hypothesis-cap", type=int, default=2000)
     args = parser.parse_args()
     if not KITTI.is_dir():

@@ -34,6 +34,9 @@ class Reducible(Protocol):
       element indices, most suspect first. ddmin splits the elements into contiguous
       chunks, so putting the likely culprits together saves SUT calls; the proof of
       1-minimality does not depend on the order.
+    * ``rankings(...)`` (same arguments) -> list of such orders: tried one after the
+      other, each ddmin pass starting from the previous pass's set, when a pass runs out
+      of its share of the budget (a fault may depend on where points are, or on how high).
     * ``describe_elements(limit) -> list of str``: one line per element for messages.
     * ``describe_effect(source_output, followup_output) -> list of str``: what the
       elements do to the output (e.g. "hidden: pedestrian at (14.2, 1.1), 60 m away").

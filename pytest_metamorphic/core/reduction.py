@@ -52,7 +52,8 @@ class Reduction:
     proven_minimal : bool
         True when every single-element removal was tried and none still fails.
     calls : int
-        SUT calls the reduction spent (the confirming call included).
+        SUT calls the reduction spent (the confirming call included; subsets seen in an
+        earlier pass are not run again).
     budget : int
         The call budget it ran under.
     crashes : int
@@ -117,20 +118,26 @@ class Reduction:
         return [describe_value(self.perturbation)]
 
 
-def _ranking(
+def _orders(
     reducible: Reducible, source: Any, source_output: Any, followup_output: Any
-) -> list[int]:
+) -> list[list[int]]:
+    """The element orders to try, one ddmin pass each (``rankings``, ``ranking`` or as is)."""
     size = len(reducible)
-    rank = getattr(reducible, "ranking", None)
-    if not callable(rank):
-        return list(range(size))
-    order = [int(i) for i in rank(source, source_output, followup_output)]
-    if sorted(order) != list(range(size)):
-        raise InvalidArgument(
-            f"{type(reducible).__name__}.ranking() must return a permutation of "
-            f"range({size}), got {describe_value(order)}"
-        )
-    return order
+    rankings = getattr(reducible, "rankings", None)
+    if callable(rankings):
+        orders = [list(order) for order in rankings(source, source_output, followup_output)]
+        method = "rankings"
+    else:
+        rank = getattr(reducible, "ranking", None)
+        orders = [list(rank(source, source_output, followup_output))] if callable(rank) else []
+        method = "ranking"
+    for order in orders:
+        if sorted(int(i) for i in order) != list(range(size)):
+            raise InvalidArgument(
+                f"{type(reducible).__name__}.{method}() must give permutations of "
+                f"range({size}), got {describe_value(order)}"
+            )
+    return [[int(i) for i in order] for order in orders] or [list(range(size))]
 
 
 def reduce_followup(
@@ -182,38 +189,61 @@ def reduce_followup(
     if found is None:
         return None
     key, reducible = found
-    order = _ranking(reducible, source, source_output, followup_output)
+    orders = _orders(reducible, source, source_output, followup_output)
+    verdicts: dict[tuple[int, ...], bool] = {}
     failing: dict[tuple[int, ...], tuple[Mapping[str, Any], Any, Verdict]] = {}
-    crashes = 0
+    crashes = calls = 0
 
     def build(indices: tuple[int, ...]) -> tuple[Reducible, Any, dict[str, Any]]:
         reduced = reducible.restrict(list(indices))
         return reduced, reduced.apply(source), {**params, **reduced.params()}
 
     def fails(chosen: Sequence[int]) -> bool:
-        nonlocal crashes
+        nonlocal crashes, calls
         indices = tuple(sorted(chosen))
+        if indices in verdicts:  # passes after the first revisit subsets
+            return verdicts[indices]
         _, value, subset_params = build(indices)
+        calls += 1
         try:
             output = run(value)
         except Exception:
             # A crash is another bug; the subset must reproduce *this* violation.
             crashes += 1
+            verdicts[indices] = False
             return False
         verdict = check(source_output, output, CheckContext(source, value, subset_params, index))
         if not verdict.holds:
             failing[indices] = (subset_params, output, verdict)
-        return not verdict.holds
+        verdicts[indices] = not verdict.holds
+        return verdicts[indices]
 
-    try:
-        result = ddmin(order, fails, max_calls=budget)
-    except InvalidArgument:
-        raise InvalidArgument(
-            f"rebuilding the follow-up from all {len(reducible)} elements of {key!r} "
-            f"({type(reducible).__name__}.restrict + apply) does not violate the relation, "
-            "so it cannot be reduced"
-        ) from None
-    indices = tuple(sorted(result.elements))
+    current = list(range(len(reducible)))
+    proven = False
+    sizes: list[int] = []
+    for number, order in enumerate(orders):
+        remaining = budget - calls
+        if remaining <= 0:
+            break
+        # Later orders are fallbacks: each pass but the last gets 4/5 of what is left.
+        share = remaining if number == len(orders) - 1 else max(remaining * 4 // 5, 1)
+        kept = set(current)
+        try:
+            result = ddmin(
+                [i for i in order if i in kept], fails, max_calls=share, check_input=number == 0
+            )
+        except InvalidArgument:
+            raise InvalidArgument(
+                f"rebuilding the follow-up from all {len(reducible)} elements of {key!r} "
+                f"({type(reducible).__name__}.restrict + apply) does not violate the "
+                "relation, so it cannot be reduced"
+            ) from None
+        current = sorted(result.elements)
+        sizes.extend(result.history)
+        if result.proven_minimal:
+            proven = True
+            break
+    indices = tuple(current)
     reduced, value, _ = build(indices)
     subset_params, output, verdict = failing[indices]
     return Reduction(
@@ -225,10 +255,10 @@ def reduce_followup(
         params=subset_params,
         output=output,
         verdict=verdict,
-        proven_minimal=result.proven_minimal,
-        calls=result.calls,
+        proven_minimal=proven,
+        calls=calls,
         budget=budget,
         crashes=crashes,
         fails_without_elements=() in failing,
-        sizes=result.history,
+        sizes=tuple(sizes),
     )

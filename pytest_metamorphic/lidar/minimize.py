@@ -14,7 +14,10 @@ Elements are ranked by their bird's-eye distance to the obstacles the follow-up 
 (:func:`lost_obstacles`), nearest first. A ground or clustering fault hides an obstacle
 through points near it, so the culprits end up in the same ddmin chunk and are found in
 a few calls; a fault with far-reaching culprits (a bounding box of the whole sweep) only
-loses the advantage, never the proof.
+loses the advantage, never the proof. When that pass runs out of its half of the budget,
+a second pass orders the remaining points by height: faults driven by a height statistic
+of the whole sweep (a percentile cut) need many high points, which the distance order
+scatters over every ddmin chunk.
 """
 
 from __future__ import annotations
@@ -163,6 +166,10 @@ def _effect_lines(xy: NDArray[np.floating], source_output: Any, followup_output:
     return lines
 
 
+def _by_height(z: NDArray[np.floating]) -> list[int]:
+    return np.argsort(-np.asarray(z, dtype=np.float64), kind="stable").tolist()
+
+
 def _point_line(x: float, y: float, z: float, intensity: float) -> str:
     return (
         f"({x:.2f}, {y:.2f}, {z:.2f}) intensity {intensity:.3g}, "
@@ -204,7 +211,15 @@ class InjectedPointsReduction:
         return self.perturbation.params()
 
     def ranking(self, source: Any, source_output: Any, followup_output: Any) -> list[int]:
+        """Nearest to a lost (or changed) obstacle first."""
         return _rank_by_distance(self.points, source_output, followup_output)
+
+    def rankings(self, source: Any, source_output: Any, followup_output: Any) -> list[list[int]]:
+        """By distance to the lost obstacle, then (fallback pass) highest first."""
+        return [
+            self.ranking(source, source_output, followup_output),
+            _by_height(self.points[:, 2]),
+        ]
 
     def describe_effect(self, source_output: Any, followup_output: Any) -> list[str]:
         """One line per obstacle the follow-up lost, with its distance to the points."""
@@ -260,6 +275,14 @@ class IndexEditReduction:
         self._source = source
         xy = source.cloud.points[np.minimum(self.indices, len(source.cloud) - 1), :2]
         return _rank_by_distance(xy, source_output, followup_output)
+
+    def rankings(self, source: Any, source_output: Any, followup_output: Any) -> list[list[int]]:
+        """By distance to the lost obstacle, then (fallback pass) highest first."""
+        first = self.ranking(source, source_output, followup_output)
+        if not isinstance(source, Frame) or len(self) == 0:
+            return [first]
+        rows = np.minimum(self.indices, len(source.cloud) - 1)
+        return [first, _by_height(source.cloud.points[rows, 2])]
 
     def describe_effect(self, source_output: Any, followup_output: Any) -> list[str]:
         """One line per obstacle the follow-up lost, with its distance to the edited points."""

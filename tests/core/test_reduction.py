@@ -234,6 +234,46 @@ def test_ranking_puts_culprits_first_and_saves_calls() -> None:
     assert ranked.calls < plain.calls
 
 
+def test_fallback_orders_share_the_budget_and_continue_from_the_first_pass() -> None:
+    # Fails when at least 20 values >= 50 are appended; the first order interleaves them
+    # with small values, the second (fallback) order puts them first.
+    def system(values: list[int]) -> int:
+        return -1 if sum(v >= 50 for v in values) >= 20 else max(values)
+
+    items = [v for pair in zip(range(50, 90), range(40), strict=True) for v in pair]
+    tested: list[tuple[int, bool]] = []  # (subset size, fails)
+
+    def run(values: list[int]) -> int:
+        output = system(values)
+        tested.append((len(values) - 1, output == -1))
+        return output
+
+    class TwoOrders(Append):
+        def restrict(self, indices: Sequence[int]) -> TwoOrders:
+            return TwoOrders([self.items[i] for i in indices])
+
+        def rankings(self, source: Any, source_output: Any, followup_output: Any):
+            plain = list(range(len(self.items)))
+            return [plain, sorted(plain, key=lambda i: -self.items[i])]
+
+    common = {"source": [10], "source_output": 10, "followup_output": -1, "check": MONOTONE.check}
+    for budget in (40, 100, 300):
+        tested.clear()
+        result = reduce_followup({"append": TwoOrders(items)}, budget=budget, run=run, **common)
+        assert result.calls == len(tested) <= budget
+        assert not result.proven_minimal
+        # The second pass starts from the first pass's set: it only tries its subsets.
+        first, second = tested[: budget * 4 // 5], tested[budget * 4 // 5 :]
+        best = min(size for size, fails in first if fails)
+        assert second and all(size <= best for size, _ in second)
+    # With room enough, the first pass proves the set and the fallback is never used.
+    single = reduce_followup({"append": Append(items)}, budget=1000, run=system, **common)
+    double = reduce_followup({"append": TwoOrders(items)}, budget=1000, run=system, **common)
+    assert single.proven_minimal and double.proven_minimal
+    assert (double.calls, double.indices) == (single.calls, single.indices)
+    assert all(items[i] >= 50 for i in double.indices) and double.size == 20
+
+
 def test_no_reducible_parameter_means_no_reduction() -> None:
     assert (
         reduce_followup(
