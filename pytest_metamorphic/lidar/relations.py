@@ -96,16 +96,18 @@ def _chunked_noise(frame: Frame, n: int) -> st.SearchStrategy[Followup]:
 
     Hypothesis' choice budget holds about a thousand integers per test case, so one seed
     per point cannot give two follow-ups of 1000 points. A chunk seed of 0 means "no
-    points": generation almost never draws it, so a follow-up holds ``n`` points, and
-    shrinking zeroes chunks, so a failure shrinks to the fewest chunks that still fail
-    (single points when ``n <= _CHUNKS``).
+    points" (except for the first chunk, which is always there): generation almost never
+    draws it, so a follow-up holds ``n`` points, and shrinking zeroes chunks, so a
+    failure shrinks to the fewest chunks that still fail (single points when
+    ``n <= _CHUNKS``).
     """
     chunks = min(n, _CHUNKS)
     size = -(-n // chunks)
     top = 2**SEED_BITS // size - 1
 
     def make(values: list[int]) -> Followup:
-        seeds = [(v * size + j) for v in values if v for j in range(size)][:n]
+        chosen = [v for index, v in enumerate(values) if v or index == 0]
+        seeds = [v * size + j for v in chosen for j in range(size)][:n]
         noise = NoiseOutsideROI.from_seeds(frame, seeds)
         return Followup(noise.apply(frame), params={**noise.params(), "chunks": values})
 

@@ -247,3 +247,20 @@ def test_bad_arguments_are_named() -> None:
         rotation_equivariance(center_tolerance=-1.0)
     with pytest.raises(InvalidArgument, match="need Frame source inputs"):
         mr1_subset().followup(np.zeros((3, 4)))
+
+
+@settings(max_examples=5, database=None, deadline=None)
+@given(st.deferred(lambda: mr1_subset().followup(street())))
+def test_mr1_follow_ups_hold_the_papers_noise(item) -> None:
+    frame = street()
+    noise = item.params["noise_outside_roi"]
+    # Ten chunk seeds of 100 points; a zero seed (shrinking's "no chunk") adds none,
+    # except for the first chunk, which is always there.
+    chunks = item.params["chunks"]
+    assert len(chunks) == 10
+    assert len(noise) == 100 * (1 + sum(1 for seed in chunks[1:] if seed))
+    assert len(item.input.cloud) == len(frame.cloud) + len(noise)
+    assert not ROAD.contains(noise.points, method="raster").any()
+    assert not ROAD.contains(noise.points, method="exact").any()
+    z = frame.cloud.points[:, 2]
+    assert noise.points[:, 2].min() >= z.min() and noise.points[:, 2].max() <= z.max()
