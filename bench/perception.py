@@ -177,6 +177,8 @@ def main() -> None:
         visible = visible_truth(truth, points, roi=region)
         for label, pipeline in pipelines.items():
             boxes = pipeline(points, roi)  # warm-up, and the boxes for scoring
+            # Scored where KITTI has labels (it matters for --roi disc).
+            boxes = [b for b in boxes if region.contains([b.center[:2]], method="exact")[0]]
             scores[label] = scores[label] + evaluate(boxes, visible)
             per_frame[label][name] = []
         for _ in range(args.repeat):
