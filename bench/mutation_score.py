@@ -25,12 +25,14 @@ import argparse
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
+from hypothesis.errors import HypothesisWarning
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -148,6 +150,8 @@ def main() -> None:
     parser.add_argument("--mutants", default=",".join(MUTANTS))
     args = parser.parse_args()
     names = [name for name in args.mutants.split(",") if name]
+    # Falsifying examples hold whole frames; their reprs are long, and we print them cut.
+    warnings.filterwarnings("ignore", category=HypothesisWarning)
 
     if not KITTI.is_dir():
         sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
