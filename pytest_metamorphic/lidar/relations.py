@@ -92,22 +92,18 @@ def _noise(n: NoiseSize, max_size: int) -> Any:
 
 
 def _chunked_noise(frame: Frame, n: int) -> st.SearchStrategy[Followup]:
-    """``n`` noise points drawn as ``_CHUNKS`` seeds of ``n / _CHUNKS`` points each.
+    """Exactly ``n`` noise points, drawn as ``_CHUNKS`` seeds of ``n / _CHUNKS`` points each.
 
     Hypothesis' choice budget holds about a thousand integers per test case, so one seed
-    per point cannot give two follow-ups of 1000 points. A chunk seed of 0 means "no
-    points" (except for the first chunk, which is always there): generation almost never
-    draws it, so a follow-up holds ``n`` points, and shrinking zeroes chunks, so a
-    failure shrinks to the fewest chunks that still fail (single points when
-    ``n <= _CHUNKS``).
+    per point cannot give two follow-ups of 1000 points. Shrinking simplifies the chunk
+    seeds; the engine's own reduction then finds the few points that matter.
     """
     chunks = min(n, _CHUNKS)
     size = -(-n // chunks)
     top = 2**SEED_BITS // size - 1
 
     def make(values: list[int]) -> Followup:
-        chosen = [v for index, v in enumerate(values) if v or index == 0]
-        seeds = [v * size + j for v in chosen for j in range(size)][:n]
+        seeds = [v * size + j for v in values for j in range(size)][:n]
         noise = NoiseOutsideROI.from_seeds(frame, seeds)
         return Followup(noise.apply(frame), params={**noise.params(), "chunks": values})
 
@@ -154,9 +150,8 @@ def mr1_subset(
     n : int, sequence of int, or None
         Noise points per follow-up: ``n`` (default 1000, the paper's largest setting);
         or one of several sizes (e.g. :data:`PAPER_NOISE_SIZES`, shrinking toward the
-        first). Shrinking removes points a tenth of ``n`` at a time, so a failure
-        shrinks to the few tenths that cause it (single points for ``n <= 10``).
-        With None, between 1 and ``max_size`` points (Hypothesis then mostly draws a
+        first); the engine's reduction then finds the few points that matter. With
+        None, between 1 and ``max_size`` points (Hypothesis then mostly draws a
         handful, which rarely land next to the ROI).
     max_size : int
         The largest count when ``n`` is None.

@@ -254,11 +254,9 @@ def test_bad_arguments_are_named() -> None:
 def test_mr1_follow_ups_hold_the_papers_noise(item) -> None:
     frame = street()
     noise = item.params["noise_outside_roi"]
-    # Ten chunk seeds of 100 points; a zero seed (shrinking's "no chunk") adds none,
-    # except for the first chunk, which is always there.
-    chunks = item.params["chunks"]
-    assert len(chunks) == 10
-    assert len(noise) == 100 * (1 + sum(1 for seed in chunks[1:] if seed))
+    # Exactly the paper's 1000 points, from ten chunk seeds of 100 points each.
+    assert len(item.params["chunks"]) == 10
+    assert len(noise) == item.params["n"] == 1000
     assert len(item.input.cloud) == len(frame.cloud) + len(noise)
     assert not ROAD.contains(noise.points, method="raster").any()
     assert not ROAD.contains(noise.points, method="exact").any()
