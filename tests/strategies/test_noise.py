@@ -127,8 +127,15 @@ def test_noise_inside_roi_keeps_clear_of_obstacles(data):
     points = _injected(followup, "noise_inside_roi")
     assert ROAD.contains(points).all() and ROAD.contains(points, method="exact").all()
     for box in source.boxes:
-        grown = Box(box.center, (box.size[0] + 3.0, box.size[1] + 3.0, 100.0), box.yaw)
-        assert not grown.contains(points[:, :3]).any()
+        # Euclidean distance from each point to the box footprint (0 inside it); a
+        # rectangle grown by the clearance would overstate it at the corners.
+        c, s = np.cos(box.yaw), np.sin(box.yaw)
+        dx, dy = points[:, 0] - box.center[0], points[:, 1] - box.center[1]
+        along, across = np.abs(c * dx + s * dy), np.abs(-s * dx + c * dy)
+        gap = np.hypot(
+            np.maximum(along - box.size[0] / 2, 0), np.maximum(across - box.size[1] / 2, 0)
+        )
+        assert (gap >= 1.5 - 1e-4).all(), gap.min()
     assert followup.params["clearance"] == 1.5
 
 
