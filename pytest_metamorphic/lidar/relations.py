@@ -38,6 +38,7 @@ from typing import Any, Literal
 
 import numpy as np
 from hypothesis import strategies as st
+from numpy.typing import NDArray
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
@@ -46,7 +47,12 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, c
 from pytest_metamorphic.core.relations import subset as subset_relation
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
-from pytest_metamorphic.lidar.perturb import SEED_BITS, NoiseOutsideROI, RotateAboutSensor
+from pytest_metamorphic.lidar.perturb import (
+    SEED_BITS,
+    DuplicatePoints,
+    NoiseOutsideROI,
+    RotateAboutSensor,
+)
 from pytest_metamorphic.strategies.noise import (
     duplicated_points,
     noise_outside_roi,
@@ -55,6 +61,7 @@ from pytest_metamorphic.strategies.noise import (
 
 __all__ = [
     "DEFAULT_NOISE",
+    "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
     "RotatedObstacles",
     "duplication_invariance",
@@ -243,16 +250,44 @@ def permutation_invariance(*, name: str = "points reordered => O == O'") -> Meta
     return MetamorphicRelation(name, lambda frame: permuted_points(_frame(frame)), equal())
 
 
+PACKET_POINTS = 384
+"""Points in one HDL-64E data packet (12 firings x 32 lasers)."""
+
+
 def duplication_invariance(
     *, max_size: int = 100, name: str = "points repeated => O == O'"
 ) -> MetamorphicRelation:
-    """Repeating points (a driver sending a packet twice) does not matter."""
+    """Repeating points does not matter.
+
+    Follow-ups repeat, in order of shrinking preference: up to ``max_size`` scattered
+    points; one packet's worth of consecutive points (:data:`PACKET_POINTS`, a driver
+    that sends a packet twice); or the whole sweep (two drivers publishing one topic).
+    """
     _check_size(max_size, "max_size")
-    return MetamorphicRelation(
-        name,
-        lambda frame: duplicated_points(_frame(frame), max_size=max_size),
-        equal(),
-    )
+
+    def followup(frame: Any) -> st.SearchStrategy[Followup]:
+        frame = _frame(frame)
+        count = len(frame.cloud)
+
+        def repeat(rows: NDArray[np.intp], what: str) -> Followup:
+            perturbation = DuplicatePoints(rows)
+            params = {"duplicated": len(rows), "what": what}
+            return Followup(perturbation.apply(frame), params=params)
+
+        def packet(start: int) -> Followup:
+            rows = np.arange(start, min(start + PACKET_POINTS, count), dtype=np.intp)
+            return repeat(rows, f"points {start}..{start + len(rows) - 1} (one packet)")
+
+        whole = st.just(None).map(
+            lambda _: repeat(np.arange(count, dtype=np.intp), "every point")
+        )
+        return st.one_of(
+            duplicated_points(frame, max_size=max_size),
+            st.integers(0, max(count - 1, 0)).map(packet),
+            whole,
+        )
+
+    return MetamorphicRelation(name, followup, equal())
 
 
 class RotatedObstacles(Relation):
