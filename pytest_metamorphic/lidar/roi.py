@@ -748,13 +748,16 @@ class ROI:
                 cells = self.free_cells(margin_cells=margin_cells)
             else:
                 cells = self.interior_cells(margin_cells=margin_cells)
-            ix, iy = np.nonzero(cells)
-            origins = self.cell_origin(ix, iy)
+            # Lower cell edges per axis: the same values cell_origin() gives.
+            index = np.arange(self.grid_size)
+            lower = self.cell_origin(index, index)[:, 0]
             if limit is not None:
-                # Closest point of each cell to the origin.
-                nearest = np.clip(0.0, origins, origins + self.cell_size)
-                origins = origins[(nearest**2).sum(axis=1) <= limit**2]
-            origins = self._cache[key] = np.ascontiguousarray(origins)
+                # Closest point of each cell to the origin, per axis: the range test is
+                # one (size, size) comparison instead of one per cell.
+                squared = np.clip(0.0, lower, lower + self.cell_size) ** 2
+                cells = cells & (squared[:, None] + squared[None, :] <= limit**2)
+            ix, iy = np.nonzero(cells)
+            origins = self._cache[key] = np.stack([lower[ix], lower[iy]], axis=1)
             origins.setflags(write=False)
         return origins
 
