@@ -1,0 +1,59 @@
+"""The MR1 campaign on real KITTI sweeps (Velodyne HDL-64E, as in Zhou & Sun).
+
+Every full, labelled KITTI frame in ``../shared/data/kitti_openpcdet`` is a source; each
+gets 50 independent follow-ups per noise size (10, 100 and 1000 points outside the ROI).
+KITTI has no HD map, so the ROI is the camera wedge its labels cover
+(:func:`~pytest_metamorphic.lidar.evaluation.kitti_label_region`). Skipped where the data
+is absent; set ``PYTEST_METAMORPHIC_DATA`` to point elsewhere::
+
+    pytest examples/test_kitti_campaign.py --mt-campaign
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from pytest_metamorphic.core.campaign import campaign_test
+from pytest_metamorphic.lidar.campaign import mr1_campaign
+from pytest_metamorphic.lidar.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.perception.mutants import mutant
+from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
+
+DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", Path(__file__).parents[2] / "shared/data"))
+KITTI = DATA / "kitti_openpcdet" / "training"
+if not KITTI.is_dir():
+    pytest.skip(f"KITTI frames not found at {KITTI}", allow_module_level=True)
+
+FOLLOWUPS = 50
+frames = FrameCatalog(KITTI, roi=kitti_label_region())
+reference = ReferencePerception()
+faulty = mutant("full_cloud_ground")  # Apollo's use_full_cloud: the paper's root cause
+
+
+def reference_system(frame: Frame) -> list[Box]:
+    return reference(frame.cloud, frame.roi)
+
+
+def faulty_system(frame: Frame) -> list[Box]:
+    return faulty(frame.cloud, frame.roi)
+
+
+test_kitti_mr1_reference = campaign_test(
+    mr1_campaign(reference_system, name="MR1 KITTI reference", frames=frames, followups=FOLLOWUPS),
+    shards=len(frames),
+)
+test_kitti_mr1_full_cloud_ground = campaign_test(
+    mr1_campaign(
+        faulty_system,
+        name="MR1 KITTI mutant full_cloud_ground",
+        frames=frames,
+        followups=FOLLOWUPS,
+    ),
+    shards=len(frames),
+)
