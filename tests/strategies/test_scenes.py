@@ -10,11 +10,12 @@ import trimesh
 from hypothesis import HealthCheck, Phase, find, given, settings
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS, bev_iou
+from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.scene import MeshShape, Scene
 from pytest_metamorphic.strategies.roi import road_corridors
 from pytest_metamorphic.strategies.scenes import scene_frames, scenes
+from tests.lidar.test_layout import check_placement
 
 NO_DB = settings(database=None, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 # Shrink-quality checks replay the same search every run.
@@ -25,29 +26,7 @@ ROAD = ROI.from_polygons([[[-120, -6], [120, -6], [120, 6], [-120, 6]]])
 @settings(max_examples=25)
 @given(scene=scenes(max_obstacles=5, max_background=5))
 def test_scenes_place_objects_realistically(scene):
-    assert isinstance(scene, Scene)
-    assert 1.63 <= scene.sensor_height <= 1.90
-    roi = scene.roi
-    boxes = scene.boxes
-    for box in boxes:
-        assert SIZE_PRIORS[box.label].contains(box.size)
-        assert box.bottom_z == pytest.approx(-scene.sensor_height)  # standing on the ground
-        assert roi.contains(np.array([box.center[:2]]))[0]
-        assert roi.contains(np.array([box.center[:2]]), method="exact")[0]
-        assert math.hypot(*box.center[:2]) <= 50.0
-        assert math.hypot(*box.center[:2]) - math.hypot(*box.size[:2]) / 2 >= 4.0  # ego car
-    if len(boxes) > 1:
-        iou = bev_iou(boxes, boxes)
-        assert np.allclose(iou[~np.eye(len(boxes), dtype=bool)], 0.0)
-    for item in scene.background:
-        # The whole footprint stays outside the ROI, by both methods.
-        angles = np.linspace(0, 2 * math.pi, 16, endpoint=False)
-        ring = (
-            np.array(item.center) + item.footprint_radius() * np.c_[np.cos(angles), np.sin(angles)]
-        )
-        probe = np.vstack([ring, [item.center]])
-        assert not roi.contains(probe).any()
-        assert not roi.contains(probe, method="exact").any()
+    check_placement(scene)
 
 
 def test_scenes_shrink_to_fewer_and_simpler_obstacles():

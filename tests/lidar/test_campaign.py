@@ -1,0 +1,103 @@
+"""The paper's MR1 campaign on synthetic scenes and recorded KITTI frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import shared_data_path
+from pytest_metamorphic.core.campaign import merge_results, run_campaign
+from pytest_metamorphic.core.engine import Followup
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.campaign import (
+    mr1_campaign,
+    noise_followup,
+    recorded_frames,
+    synthetic_frames,
+)
+from pytest_metamorphic.lidar.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.perception.mutants import mutant
+from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
+
+reference = ReferencePerception()
+
+
+def reference_system(frame: Frame) -> list[Box]:
+    return reference(frame.cloud, frame.roi)
+
+
+def system_of(name: str):
+    faulty = mutant(name)
+    return lambda frame: faulty(frame.cloud, frame.roi)
+
+
+def test_synthetic_sources_are_rendered_scenes_reproducible_by_index() -> None:
+    source = synthetic_frames()
+    frame = source(np.random.default_rng([0, 4]), 4)
+    again = source(np.random.default_rng([0, 4]), 4)
+    assert np.array_equal(frame.cloud.points, again.cloud.points)
+    assert frame.roi is not None and frame.boxes
+    assert len(frame.cloud) > 50_000  # a full HDL-64E sweep
+    assert frame.source == "synthetic:random-4"
+
+
+def test_noise_followup_adds_exactly_n_points_outside_the_roi() -> None:
+    frame = synthetic_frames()(np.random.default_rng(1), 0)
+    followup = noise_followup(frame, 100, np.random.default_rng(2))
+    assert isinstance(followup, Followup)
+    added = followup.input.cloud.points[len(frame.cloud) :]
+    assert len(added) == 100
+    assert not frame.roi.contains(added[:, :2]).any()
+    assert not frame.roi.contains(added[:, :2], method="exact").any()
+
+
+def test_reference_never_violates_mr1_and_the_mutant_does_more_with_more_noise() -> None:
+    options = {"sources": 12, "sizes": (10, 1000), "seed": 0}
+    clean = run_campaign(mr1_campaign(reference_system, name="ref", **options))
+    assert clean.complete and clean.sut_calls == 12 * 3
+    assert all(counts.violations == 0 and counts.pairs == 12 for counts in clean.sizes.values())
+    faulty = run_campaign(mr1_campaign(system_of("count_scaled_radius"), name="mut", **options))
+    assert faulty.sizes[1000].violations > faulty.sizes[10].violations
+    assert faulty.examples and "has no match in follow-up" in faulty.examples[0]["explanation"]
+    categories = faulty.sizes[1000].categories
+    assert set(categories) <= {"car", "pedestrian", "cyclist", "unknown"}
+
+
+def test_shards_merge_into_the_single_process_result() -> None:
+    campaign = mr1_campaign(system_of("count_scaled_radius"), name="m", sources=6, sizes=(1000,))
+    whole = run_campaign(campaign)
+    parts = [run_campaign(campaign, shard=shard, shards=3) for shard in range(3)]
+    assert merge_results(parts).to_json() == whole.to_json()
+
+
+def test_kitti_frames_are_sources_and_the_reference_holds_on_them() -> None:
+    folder = shared_data_path("kitti_openpcdet", "training")
+    catalog = FrameCatalog(folder, roi=kitti_label_region())
+    campaign = mr1_campaign(reference_system, name="kitti", frames=catalog, sizes=(1000,))
+    assert campaign.sources == len(catalog) == 6
+    result = run_campaign(campaign)
+    assert result.sizes[1000].pairs == 6 and result.sizes[1000].violations == 0
+    faulty = mr1_campaign(
+        system_of("full_cloud_ground"), name="k", frames=catalog, sizes=(1000,), followups=8
+    )
+    assert run_campaign(faulty).sizes[1000].violations > 0
+
+
+def test_bad_campaign_arguments_are_named(tmp_path) -> None:
+    with pytest.raises(InvalidArgument, match="system="):
+        mr1_campaign(42, name="x")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="frames="):
+        mr1_campaign(reference_system, name="x", frames=3.5)  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="labels="):
+        synthetic_frames(labels=("truck",))
+    folder = shared_data_path("kitti_openpcdet", "training")
+    with pytest.raises(InvalidArgument, match="attaches no ROI"):
+        recorded_frames(FrameCatalog(folder))
+    with pytest.raises(InvalidArgument, match="attaches no ROI"):
+        mr1_campaign(reference_system, name="x", frames=folder)
+    catalog = FrameCatalog(folder, roi=kitti_label_region())
+    with pytest.raises(InvalidArgument, match="holds 6 frames"):
+        mr1_campaign(reference_system, name="x", frames=catalog, sources=7)
