@@ -6,12 +6,21 @@ import json
 import os
 import tempfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
-from pytest_metamorphic.core.campaign import CampaignResult, SizeCounts
+from pytest_metamorphic.core.campaign import CampaignResult
 from pytest_metamorphic.core.intervals import wilson
 
-__all__ = ["format_table", "to_markdown", "write_chart", "write_json", "write_markdown"]
+__all__ = [
+    "ChartColumn",
+    "chart_columns",
+    "format_table",
+    "to_markdown",
+    "write_chart",
+    "write_json",
+    "write_markdown",
+]
 
 _OUTCOMES = ("fewer", "equal", "more")
 _HEADINGS = {"fewer": "|O| > |O'|", "equal": "|O| = |O'|", "more": "|O| < |O'|"}
@@ -139,6 +148,39 @@ def write_markdown(result: CampaignResult, path: Path) -> None:
     _atomic_write(path, lambda p: p.write_text(to_markdown(result), encoding="utf-8"))
 
 
+@dataclass(frozen=True)
+class ChartColumn:
+    """One column of the Fig. 3 chart: a category at one noise size."""
+
+    category: str
+    size: int
+    position: float
+    percentages: tuple[float, float, float]  # fewer, same, more; sum 100 (or all 0)
+
+
+def chart_columns(result: CampaignResult) -> list[ChartColumn]:
+    """The chart's columns: one group per category (sizes side by side), a gap between.
+
+    Without categories there is one group, "all", of the overall |O| vs |O'| counts.
+    """
+    sizes = sorted(result.sizes)
+    categories = sorted({c for counts in result.sizes.values() for c in counts.categories})
+    columns = []
+    for index, category in enumerate(categories or ["all"]):
+        for offset, size in enumerate(sizes):
+            counts = result.sizes[size]
+            values = (
+                counts.categories.get(category, [0, 0, 0])
+                if categories
+                else [counts.fewer, counts.equal, counts.more]
+            )
+            total = sum(values)
+            shares = tuple(100.0 * v / total if total else 0.0 for v in values)
+            position = float(index * (len(sizes) + 1) + offset)
+            columns.append(ChartColumn(category, size, position, shares))  # type: ignore[arg-type]
+    return columns
+
+
 def write_chart(result: CampaignResult, path: Path) -> None:
     """100% stacked columns per category and n, like the paper's Fig. 3 (needs matplotlib)."""
     import matplotlib
@@ -146,32 +188,34 @@ def write_chart(result: CampaignResult, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    columns = chart_columns(result)
     sizes = sorted(result.sizes)
-    categories = sorted({c for counts in result.sizes.values() for c in counts.categories})
-    groups: list[tuple[str, SizeCounts | list[int]]] = []
-    for category in categories or ["all"]:
-        for size in sizes:
-            counts = result.sizes[size]
-            values = (
-                counts.categories.get(category, [0, 0, 0])
-                if categories
-                else [counts.fewer, counts.equal, counts.more]
-            )
-            groups.append((f"{category}\nn={size}", values))
-    figure, axes = plt.subplots(figsize=(max(6.0, 0.7 * len(groups)), 4.5))
-    bottoms = [0.0] * len(groups)
+    names = list(dict.fromkeys(column.category for column in columns))
+    positions = [column.position for column in columns]
+    centres = [
+        sum(c.position for c in columns if c.category == name) / len(sizes) for name in names
+    ]
+    figure, axes = plt.subplots(figsize=(max(6.0, 0.45 * len(positions) + 2.5), 4.5))
+    bottoms = [0.0] * len(columns)
     colours = {"fewer": "#d62728", "equal": "#bbbbbb", "more": "#1f77b4"}
     labels = {"fewer": "fewer in O'", "equal": "same", "more": "more in O'"}
     for slot, name in enumerate(_OUTCOMES):
-        heights = []
-        for _, values in groups:
-            total = sum(values)
-            heights.append(100.0 * values[slot] / total if total else 0.0)
-        axes.bar(
-            range(len(groups)), heights, bottom=bottoms, color=colours[name], label=labels[name]
-        )
+        heights = [column.percentages[slot] for column in columns]
+        axes.bar(positions, heights, bottom=bottoms, color=colours[name], label=labels[name])
         bottoms = [b + h for b, h in zip(bottoms, heights, strict=True)]
-    axes.set_xticks(range(len(groups)), [label for label, _ in groups], fontsize=8)
+    axes.set_xticks(positions, [str(column.size) for column in columns], fontsize=7)
+    for centre, category in zip(centres, names, strict=True):
+        axes.annotate(
+            category,
+            (centre, 0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, -24),
+            textcoords="offset points",
+            ha="center",
+            va="top",
+            fontsize=9,
+        )
+    axes.set_xlabel("noise points n, per category", labelpad=22)
     axes.set_ylabel("% of source/follow-up pairs")
     axes.set_ylim(0, 100)
     title = f"{result.header['campaign']}: objects per category, O vs O'"

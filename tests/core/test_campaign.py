@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from pytest_metamorphic import InvalidArgument, relations
-from pytest_metamorphic.core.campaign import Campaign, merge_results, run_campaign
+from pytest_metamorphic.core.campaign import (
+    Campaign,
+    CampaignResult,
+    SizeCounts,
+    merge_results,
+    run_campaign,
+)
 from pytest_metamorphic.core.intervals import wilson
 
 
@@ -198,3 +204,35 @@ def test_partial_result_says_it_is_partial(tmp_path: Path) -> None:
 
     partial = run_campaign(campaign(Lossy(), sources=20), shard=0, shards=2)
     assert "PARTIAL: 10 of 20 sources" in format_table(partial)[0]
+
+
+def test_chart_columns_and_pixels_follow_the_counts(tmp_path: Path) -> None:
+    from pytest_metamorphic.reports.campaign import chart_columns, write_chart
+
+    header = {"campaign": "c", "sources": 1, "sizes": [10, 1000]}
+    result = CampaignResult(
+        header,
+        {
+            10: SizeCounts(pairs=4, categories={"car": [1, 1, 2], "pedestrian": [0, 4, 0]}),
+            1000: SizeCounts(pairs=4, categories={"car": [2, 0, 2]}),
+        },
+        sources_done={0},
+    )
+    columns = chart_columns(result)
+    assert [(c.category, c.size, c.position) for c in columns] == [
+        ("car", 10, 0.0),
+        ("car", 1000, 1.0),
+        ("pedestrian", 10, 3.0),
+        ("pedestrian", 1000, 4.0),
+    ]
+    assert columns[0].percentages == (25.0, 25.0, 50.0)
+    assert columns[1].percentages == (50.0, 0.0, 50.0)
+    assert columns[2].percentages == (0.0, 100.0, 0.0)
+    assert columns[3].percentages == (0.0, 0.0, 0.0)  # no pedestrians at n=1000
+    image = pytest.importorskip("matplotlib.image")
+    write_chart(result, tmp_path / "c.png")
+    pixels = image.imread(tmp_path / "c.png")[..., :3]
+    red = np.all(np.abs(pixels - [0xD6 / 255, 0x27 / 255, 0x28 / 255]) < 0.02, axis=-1)
+    blue = np.all(np.abs(pixels - [0x1F / 255, 0x77 / 255, 0xB4 / 255]) < 0.02, axis=-1)
+    # Red: 25% + 50% of a column, blue: 50% + 50% (legend swatches are equal for both).
+    assert red.sum() / blue.sum() == pytest.approx(0.75, rel=0.05)
