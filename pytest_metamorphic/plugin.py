@@ -325,21 +325,33 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
 
 def _run_campaign_shard(item: pytest.Item) -> None:
     from pytest_metamorphic.core.campaign import run_campaign
+    from pytest_metamorphic.reports.progress import ProgressBar
 
     campaign, shards = _campaign_of(item)
     shard = item.callspec.params["mt_shard"]
     options = item.config.stash[_OPTIONS]
     log = options.campaign_dir / _slug(campaign.name) / f"shard-{shard}-of-{shards}.jsonl"
-    reporter = item.config.pluginmanager.get_plugin("terminalreporter")
-    show = reporter is not None and not hasattr(item.config, "workerinput")
-
-    def progress(done: int, total: int) -> None:
-        if show:
-            reporter.write(f"\r  {campaign.name} shard {shard}/{shards}: {done}/{total} sources ")
-
-    item.stash[_CAMPAIGN_RESULT] = run_campaign(
-        campaign, log=log, resume=options.resume, shard=shard, shards=shards, progress=progress
-    )
+    bar = None
+    if not hasattr(item.config, "workerinput"):
+        reporter = item.config.pluginmanager.get_plugin("terminalreporter")
+        bar = ProgressBar.for_terminal(
+            reporter,
+            campaign.name,
+            shard=f"{shard + 1}/{shards}",
+            capture=item.config.pluginmanager.get_plugin("capturemanager"),
+        )
+    try:
+        item.stash[_CAMPAIGN_RESULT] = run_campaign(
+            campaign,
+            log=log,
+            resume=options.resume,
+            shard=shard,
+            shards=shards,
+            progress=bar.update if bar else None,
+        )
+    finally:
+        if bar:
+            bar.close()
 
 
 def _slug(name: str) -> str:
