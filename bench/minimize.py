@@ -54,8 +54,8 @@ from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.io import read_bin  # noqa: E402
 from pytest_metamorphic.lidar.perception.mutants import mutant  # noqa: E402
 from pytest_metamorphic.lidar.perturb import SEED_BITS, NoiseOutsideROI  # noqa: E402
-from pytest_metamorphic.lidar.relations import mr1_subset  # noqa: E402
-from pytest_metamorphic.strategies.noise import noise_outside_roi  # noqa: E402
+from pytest_metamorphic.relations.lidar import mr1_subset  # noqa: E402
+from pytest_metamorphic.strategies import noise_outside_roi  # noqa: E402
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
 KITTI = DATA / "kitti_openpcdet" / "training" / "velodyne"

@@ -1,6 +1,6 @@
 """Mutation score of the LiDAR relation library against faulty perception pipelines.
 
-Every relation of :func:`pytest_metamorphic.lidar.relations.lidar_relations` (plus
+Every relation of :func:`pytest_metamorphic.relations.lidar.lidar_relations` (plus
 rotation by any angle) runs as an ``@metamorphic`` Hypothesis test against the reference
 pipeline and against each mutant of :mod:`pytest_metamorphic.lidar.perception.mutants`,
 at the default budgets: Hypothesis' default ``max_examples`` (100), the engine's default
@@ -44,10 +44,6 @@ from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.obstacles import Box  # noqa: E402
 from pytest_metamorphic.lidar.perception import ReferencePerception  # noqa: E402
 from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant  # noqa: E402
-from pytest_metamorphic.lidar.relations import (  # noqa: E402
-    lidar_relations,
-    rotation_equivariance,
-)
 from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
 from pytest_metamorphic.lidar.scene import (  # noqa: E402
     BackgroundObject,
@@ -55,7 +51,11 @@ from pytest_metamorphic.lidar.scene import (  # noqa: E402
     Scene,
     render,
 )
-from pytest_metamorphic.strategies.frames import frames  # noqa: E402
+from pytest_metamorphic.relations.lidar import (  # noqa: E402
+    lidar_relations,
+    rotation_equivariance,
+)
+from pytest_metamorphic.strategies import frames  # noqa: E402
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
 KITTI = DATA / "kitti_openpcdet" / "training"

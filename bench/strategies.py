@@ -40,7 +40,7 @@ from pytest_metamorphic.lidar.scene import (  # noqa: E402
     default_engine,
     render,
 )
-from pytest_metamorphic.strategies.noise import noise_outside_roi  # noqa: E402
+from pytest_metamorphic.strategies import noise_outside_roi  # noqa: E402
 
 APOLLO_POLY = ROOT.parent / "shared" / "data" / "apollo" / "hdmap_roi_filter" / "poly_mask_ut.poly"
 

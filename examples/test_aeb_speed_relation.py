@@ -27,9 +27,9 @@ from hypothesis import Phase, settings
 from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.kinematics import SimulationResult, simulate
-from pytest_metamorphic.driving.relations import speed_relation
 from pytest_metamorphic.driving.scenario import Scenario
-from pytest_metamorphic.strategies.driving import aeb_scenarios, straight_roads
+from pytest_metamorphic.relations.driving import speed_relation
+from pytest_metamorphic.strategies import aeb_scenarios, straight_roads
 
 
 def my_aeb() -> Callable:

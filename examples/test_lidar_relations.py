@@ -22,7 +22,7 @@ from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
-from pytest_metamorphic.lidar.relations import lidar_relations, mr1_subset
+from pytest_metamorphic.relations.lidar import lidar_relations, mr1_subset
 
 reference = ReferencePerception()
 

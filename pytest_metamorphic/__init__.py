@@ -18,7 +18,7 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "MetamorphicRelation": ("pytest_metamorphic.core.engine", "MetamorphicRelation"),
     "Followup": ("pytest_metamorphic.core.engine", "Followup"),
     "MetamorphicCase": ("pytest_metamorphic.core.engine", "MetamorphicCase"),
-    "relations": ("pytest_metamorphic.core.relations", None),
+    "relations": ("pytest_metamorphic.relations", None),
     "Verdict": ("pytest_metamorphic.core.relations", "Verdict"),
     "Relation": ("pytest_metamorphic.core.relations", "Relation"),
     "DataError": ("pytest_metamorphic.core.errors", "DataError"),
@@ -50,7 +50,7 @@ __all__ = [  # noqa: RUF022 - grouped: API, relations, errors
 ]
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pytest_metamorphic.core import relations
+    from pytest_metamorphic import relations
     from pytest_metamorphic.core.engine import (
         Followup,
         MetamorphicCase,

@@ -5,7 +5,7 @@ For every source frame, and every noise size n (the paper's 10, 100 and 1000 poi
 over the frame's ranges); the system under test runs once on the source and once per
 follow-up. The campaign counts the paper's table (|O| > |O'|, =, <), strict MR1
 violations (some source obstacle without its own match in the follow-up, the
-:func:`~pytest_metamorphic.lidar.relations.mr1_subset` relation) and a per-class
+:func:`~pytest_metamorphic.relations.lidar.mr1_subset` relation) and a per-class
 breakdown (the paper's Fig. 3), each with a Wilson 95% interval.
 
 Sources are either synthetic street scenes rendered with the HDL-64E beam layout (no data
@@ -33,13 +33,13 @@ from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
+from pytest_metamorphic.core.relations import subset
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.layout import random_scene
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
-from pytest_metamorphic.lidar.relations import PAPER_NOISE_SIZES, mr1_subset
+from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
 from pytest_metamorphic.lidar.scene import render
 
 __all__ = ["box_label", "mr1_campaign", "noise_followup", "recorded_frames", "synthetic_frames"]
@@ -142,7 +142,7 @@ def mr1_campaign(
     seed : int
     matcher : Matcher, optional
         When a follow-up obstacle is the same as a source one (default: same label and
-        bird's-eye IoU >= 0.5, as :func:`~pytest_metamorphic.lidar.relations.mr1_subset`).
+        bird's-eye IoU >= 0.5, as :func:`~pytest_metamorphic.relations.lidar.mr1_subset`).
     """
     if not callable(system):
         raise InvalidArgument(f"system={system!r} must be callable (Frame -> list of Box)")
@@ -168,7 +168,7 @@ def mr1_campaign(
         source=source,
         followup=noise_followup,
         system=system,
-        relation=mr1_subset(matcher=matcher).relation,
+        relation=subset(matcher=matcher or IoUMatcher()),
         sizes=tuple(sizes),
         sources=sources,
         followups=followups,

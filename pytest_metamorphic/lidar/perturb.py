@@ -40,6 +40,7 @@ from pytest_metamorphic.lidar.roi import ROI
 
 __all__ = [
     "NOISE_INSTANCE",
+    "PAPER_NOISE_SIZES",
     "SEED_BITS",
     "DropPoints",
     "DuplicatePoints",
@@ -50,6 +51,9 @@ __all__ = [
     "RotateAboutSensor",
     "seeded_uniforms",
 ]
+
+PAPER_NOISE_SIZES = (10, 100, 1000)
+"""The numbers of noise points Zhou & Sun added per follow-up."""
 
 SEED_BITS = 32
 """Noise seeds are integers in ``[0, 2**SEED_BITS)``."""

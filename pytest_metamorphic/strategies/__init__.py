@@ -1,37 +1,88 @@
 """Hypothesis strategies for metamorphic testing, in the style of ``hypothesis.strategies``.
 
-Use as ``from pytest_metamorphic import strategies as mst``. Names are looked up lazily in
-the submodules listed in ``_SUBMODULES`` (each defines ``__all__``), so importing this
-package costs nothing until a strategy is used.
+Use as ``from pytest_metamorphic import strategies as mst``. The strategies live in private
+submodules whose names never clash with a strategy's (so ``mst.frames`` is always the
+function); they are imported on first use, so importing this package costs nothing until a
+strategy is used.
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-_SUBMODULES = ("frames", "roi", "scenes", "noise", "driving")
+# strategy name -> private submodule defining it
+_LAZY: dict[str, str] = {
+    "frames": "_frames",
+    "junctions": "_roi",
+    "road_corridors": "_roi",
+    "rois": "_roi",
+    "simple_polygons": "_roi",
+    "scene_frames": "_scenes",
+    "scenes": "_scenes",
+    "dropped_points": "_noise",
+    "duplicated_points": "_noise",
+    "noise_inside_roi": "_noise",
+    "noise_outside_roi": "_noise",
+    "permuted_points": "_noise",
+    "rotated_frames": "_noise",
+    "aeb_scenarios": "_driving",
+    "ego_speed_changes": "_driving",
+    "straight_roads": "_driving",
+}
 
+__all__ = [
+    "aeb_scenarios",
+    "dropped_points",
+    "duplicated_points",
+    "ego_speed_changes",
+    "frames",
+    "junctions",
+    "noise_inside_roi",
+    "noise_outside_roi",
+    "permuted_points",
+    "road_corridors",
+    "rois",
+    "rotated_frames",
+    "scene_frames",
+    "scenes",
+    "simple_polygons",
+    "straight_roads",
+]
 
-def _modules() -> list[Any]:
-    modules = []
-    for name in _SUBMODULES:
-        try:
-            modules.append(importlib.import_module(f"{__name__}.{name}"))
-        except ModuleNotFoundError as error:
-            if error.name != f"{__name__}.{name}":
-                raise
-    return modules
+if TYPE_CHECKING:  # pragma: no cover
+    from pytest_metamorphic.strategies._driving import (
+        aeb_scenarios,
+        ego_speed_changes,
+        straight_roads,
+    )
+    from pytest_metamorphic.strategies._frames import frames
+    from pytest_metamorphic.strategies._noise import (
+        dropped_points,
+        duplicated_points,
+        noise_inside_roi,
+        noise_outside_roi,
+        permuted_points,
+        rotated_frames,
+    )
+    from pytest_metamorphic.strategies._roi import (
+        junctions,
+        road_corridors,
+        rois,
+        simple_polygons,
+    )
+    from pytest_metamorphic.strategies._scenes import scene_frames, scenes
 
 
 def __getattr__(name: str) -> Any:
-    for module in _modules():
-        if name in getattr(module, "__all__", ()):
-            value = getattr(module, name)
-            globals()[name] = value
-            return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
 
 
 def __dir__() -> list[str]:
-    return sorted({name for module in _modules() for name in getattr(module, "__all__", ())})
+    return __all__

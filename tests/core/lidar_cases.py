@@ -19,9 +19,9 @@ from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io import read_bin
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
-from pytest_metamorphic.lidar.relations import mr1_subset
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
+from pytest_metamorphic.relations.lidar import mr1_subset
 
 GROUND_Z = -1.73
 MR1 = mr1_subset(max_size=1000)

@@ -29,7 +29,7 @@ from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perturb import DropPoints, DuplicatePoints, NoiseOutsideROI
-from pytest_metamorphic.lidar.relations import duplication_invariance, mr1_subset
+from pytest_metamorphic.relations.lidar import duplication_invariance, mr1_subset
 from tests.core.lidar_cases import (
     MR1,
     assert_minimal_hiding_set,

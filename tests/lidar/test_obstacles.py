@@ -66,7 +66,9 @@ boxes = st.builds(
 @settings(max_examples=150)
 @given(a=boxes, b=boxes)
 def test_bev_iou_matches_polygon_clipping(a, b):
-    assert bev_iou([a], [b])[0, 0] == pytest.approx(_oracle_iou(a, b), abs=1e-9)
+    # Boxes that only touch (a yaw of 1e-7 rad) overlap by a sliver of ~1e-8 m^2 that the
+    # two clipping orders round differently: agreement to 1e-7 of a ~1 m^2 union.
+    assert bev_iou([a], [b])[0, 0] == pytest.approx(_oracle_iou(a, b), abs=1e-7)
 
 
 def test_bev_iou_known_values():

@@ -25,8 +25,8 @@ from pytest_metamorphic.lidar.io import read_bag, read_pcd
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
-from pytest_metamorphic.lidar.relations import mr1_subset, outside_noise_invariance
 from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.relations.lidar import mr1_subset, outside_noise_invariance
 from pytest_metamorphic.reports import artifacts
 from pytest_metamorphic.reports.artifacts import (
     ArtifactWriter,
@@ -35,7 +35,7 @@ from pytest_metamorphic.reports.artifacts import (
     write_artifact,
 )
 from pytest_metamorphic.reports.replay import example_snippet, replay
-from pytest_metamorphic.strategies.frames import frames
+from pytest_metamorphic.strategies import frames
 from tests.core.lidar_cases import assert_minimal_hiding_set, kitti
 
 NODEID = "tests/test_perception.py::test_mr1"

@@ -13,7 +13,7 @@ from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.driving.osm import DRIVABLE_HIGHWAYS, load_roads
 from pytest_metamorphic.driving.roads import RoadGeometry
 from pytest_metamorphic.driving.scenario import KINDS, PROTOCOLS, Scenario, euro_ncap
-from pytest_metamorphic.strategies.driving import aeb_scenarios, ego_speed_changes, straight_roads
+from pytest_metamorphic.strategies import aeb_scenarios, ego_speed_changes, straight_roads
 
 
 def test_names_are_found_through_the_strategies_package() -> None:

@@ -18,16 +18,18 @@ from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS, Box
 from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.scene import Obstacle, Scene, render
-from pytest_metamorphic.strategies.noise import (
+from pytest_metamorphic.strategies import (
     dropped_points,
     duplicated_points,
     noise_inside_roi,
     noise_outside_roi,
     permuted_points,
+    road_corridors,
+    rois,
     rotated_frames,
+    scene_frames,
+    scenes,
 )
-from pytest_metamorphic.strategies.roi import road_corridors, rois
-from pytest_metamorphic.strategies.scenes import scene_frames, scenes
 
 ROAD = ROI.from_polygons([[[-120, -6], [120, -6], [120, 6], [-120, 6]]])
 FIND = settings(

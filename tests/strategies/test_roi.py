@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.strategies.roi import junctions, road_corridors, rois, simple_polygons
+from pytest_metamorphic.strategies import junctions, road_corridors, rois, simple_polygons
 
 ORIGIN = np.zeros((1, 2))
 NO_DB = settings(database=None, deadline=None)

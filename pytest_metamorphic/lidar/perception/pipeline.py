@@ -25,7 +25,7 @@ Apollo's LiDAR obstacle perception, which Zhou & Sun tested, without learned wei
 The output is a list of :class:`~pytest_metamorphic.lidar.obstacles.Box`, sorted by
 centre, so that equal inputs give equal lists. The pipeline is deterministic and depends
 only on the *set* of points in the ROI: point order, repeated points and points outside
-the ROI do not change it (the relations of :mod:`pytest_metamorphic.lidar.relations`
+the ROI do not change it (the relations of :mod:`pytest_metamorphic.relations.lidar`
 check exactly that). Grids are anchored at the sensor origin, so adding or removing
 far-away points cannot shift a cell border, and a quarter turn of the scene about the
 sensor maps every cell onto a cell: the boxes turn with it exactly (except next to the

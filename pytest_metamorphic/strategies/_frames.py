@@ -10,8 +10,6 @@ first frame of the recording.
 from __future__ import annotations
 
 import os
-import sys
-import types
 from typing import Any, Literal
 
 from hypothesis import strategies as st
@@ -87,19 +85,3 @@ def frames(
         cache_size=cache_size,
     )
     return st.integers(0, len(catalog) - 1).map(catalog.load)
-
-
-class _CallableModule(types.ModuleType):
-    """This module, callable as :func:`frames`.
-
-    The package looks strategies up lazily by name, but importing this submodule binds
-    ``pytest_metamorphic.strategies.frames`` to the *module* (same name as the function),
-    which would hide the lazy lookup. Calling the module forwards to the function, so
-    ``mst.frames(...)`` works whatever was imported first.
-    """
-
-    def __call__(self, *args: Any, **kwargs: Any) -> st.SearchStrategy[Frame]:
-        return frames(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule

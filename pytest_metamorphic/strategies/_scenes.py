@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import functools
 import math
-import sys
-import types
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -53,7 +51,7 @@ from pytest_metamorphic.lidar.scene import (
     Scene,
     render,
 )
-from pytest_metamorphic.strategies.roi import rois
+from pytest_metamorphic.strategies._roi import rois
 
 __all__ = ["scene_frames", "scenes"]
 
@@ -134,7 +132,7 @@ def scenes(
     ----------
     roi : ROI or strategy of ROI, optional
       A fixed ROI or where to draw one; default: straight and curved roads and junctions
-      from :mod:`pytest_metamorphic.strategies.roi`.
+      from :func:`~pytest_metamorphic.strategies.rois`.
     min_obstacles, max_obstacles : int
       Obstacles per scene. They stand deep inside the ROI within ``max_distance`` metres
       of the sensor, at least 0.9 m apart and 4 m from the sensor (the ego vehicle).
@@ -222,19 +220,3 @@ def scene_frames(
     return scene_strategy.map(
         functools.partial(render, beams=beams, seed=seed, range_noise=range_noise, engine=engine)
     )
-
-
-class _CallableModule(types.ModuleType):
-    """This module, callable as :func:`scenes`.
-
-    ``pytest_metamorphic.strategies`` looks strategies up lazily by name, but importing
-    this submodule binds the package attribute ``scenes`` to the *module* (the same name
-    as the function). Calling the module forwards to the function, so ``mst.scenes(...)``
-    works whatever was imported first (as ``strategies.frames`` does).
-    """
-
-    def __call__(self, *args: Any, **kwargs: Any) -> st.SearchStrategy[Scene]:
-        return scenes(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule

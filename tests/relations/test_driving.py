@@ -9,12 +9,12 @@ from pytest_metamorphic import InvalidArgument, MetamorphicRelation
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.kinematics import simulate
-from pytest_metamorphic.driving.relations import (
+from pytest_metamorphic.driving.scenario import euro_ncap
+from pytest_metamorphic.relations.driving import (
     avoided_stays_avoided,
     impact_speed_monotone,
     speed_relation,
 )
-from pytest_metamorphic.driving.scenario import euro_ncap
 
 
 def pair(controller_factory, kind: str, source_kmh: float, followup_kmh: float, keep="ego_start"):

@@ -48,12 +48,13 @@ from pytest_metamorphic.core.relations import subset as subset_relation
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
 from pytest_metamorphic.lidar.perturb import (
+    PAPER_NOISE_SIZES,
     SEED_BITS,
     DuplicatePoints,
     NoiseOutsideROI,
     RotateAboutSensor,
 )
-from pytest_metamorphic.strategies.noise import (
+from pytest_metamorphic.strategies import (
     duplicated_points,
     noise_outside_roi,
     permuted_points,
@@ -75,8 +76,6 @@ __all__ = [
 ]
 
 
-PAPER_NOISE_SIZES = (10, 100, 1000)
-"""The numbers of noise points Zhou & Sun added per follow-up."""
 DEFAULT_NOISE = 1000
 """The paper's largest setting; shrinking then finds how few of them matter."""
 _CHUNKS = 10

@@ -2,7 +2,7 @@
 
 The follow-up changes the car's speed and re-synchronises the pedestrian
 (:meth:`Scenario.with_ego_speed`, drawn by
-:func:`pytest_metamorphic.strategies.driving.ego_speed_changes`). The system under test
+:func:`pytest_metamorphic.strategies.ego_speed_changes`). The system under test
 returns a :class:`~pytest_metamorphic.driving.kinematics.SimulationResult` for each
 scenario. Relations:
 
@@ -199,12 +199,12 @@ def speed_relation(
 ) -> Any:
     """Iqbal's speed MR as a ``MetamorphicRelation`` for ``@metamorphic(relations=[...])``.
 
-    The follow-up is :func:`~pytest_metamorphic.strategies.driving.ego_speed_changes`
+    The follow-up is :func:`~pytest_metamorphic.strategies.ego_speed_changes`
     with the given speed range; the check is :func:`avoided_stays_avoided` ``&``
     :func:`impact_speed_monotone`.
     """
     from pytest_metamorphic.core.engine import MetamorphicRelation
-    from pytest_metamorphic.strategies.driving import ego_speed_changes
+    from pytest_metamorphic.strategies import ego_speed_changes
 
     options = {
         "min_speed_kmh": min_speed_kmh,
@@ -213,7 +213,7 @@ def speed_relation(
         "keep": keep,
     }
     # Validate now (at decoration time), not on the first draw.
-    from pytest_metamorphic.strategies.driving import _check_speed_options
+    from pytest_metamorphic.strategies._driving import _check_speed_options
 
     _check_speed_options(**options)
 

@@ -26,7 +26,9 @@ from pytest_metamorphic.lidar.perturb import (
     PermutePoints,
     RotateAboutSensor,
 )
-from pytest_metamorphic.lidar.relations import (
+from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
+from pytest_metamorphic.relations.lidar import (
     RotatedObstacles,
     duplication_invariance,
     lidar_relations,
@@ -34,9 +36,7 @@ from pytest_metamorphic.lidar.relations import (
     outside_removal,
     rotation_equivariance,
 )
-from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
-from pytest_metamorphic.strategies.frames import frames
+from pytest_metamorphic.strategies import frames
 
 KITTI = conftest.SHARED_DATA / "kitti_openpcdet" / "training"
 needs_kitti = pytest.mark.skipif(not KITTI.is_dir(), reason=f"shared test data not found: {KITTI}")
