@@ -168,8 +168,7 @@ def main() -> None:
     for label, system in systems.items():
         began = time.perf_counter()
         results[label] = [
-            run_relation(system, relation, source, args.max_examples)
-            for relation, source in suite
+            run_relation(system, relation, source, args.max_examples) for relation, source in suite
         ]
         marks = " ".join(
             f"{code}:{status}" for code, (status, _) in zip(short, results[label], strict=True)

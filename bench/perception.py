@@ -206,8 +206,10 @@ def main() -> None:
         for line in scores[label].describe().splitlines():
             print(f"  {line}")
     speedup = medians["baseline"] / medians["reference"]
-    print(f"\nreference median {medians['reference']:.1f} ms per frame (target <= 20 ms); "
-          f"{speedup:.1f}x faster than the baseline")
+    print(
+        f"\nreference median {medians['reference']:.1f} ms per frame (target <= 20 ms); "
+        f"{speedup:.1f}x faster than the baseline"
+    )
     print(
         f"RESULT median_ms={medians['reference']:.2f} speedup_vs_baseline={speedup:.2f} "
         f"baseline_median_ms={medians['baseline']:.2f} frames={len(frames)} "

@@ -277,9 +277,7 @@ def duplication_invariance(
             rows = np.arange(start, min(start + PACKET_POINTS, count), dtype=np.intp)
             return repeat(rows, f"points {start}..{start + len(rows) - 1} (one packet)")
 
-        whole = st.just(None).map(
-            lambda _: repeat(np.arange(count, dtype=np.intp), "every point")
-        )
+        whole = st.just(None).map(lambda _: repeat(np.arange(count, dtype=np.intp), "every point"))
         return st.one_of(
             duplicated_points(frame, max_size=max_size),
             st.integers(0, max(count - 1, 0)).map(packet),

@@ -53,9 +53,12 @@ def test_match_radius_and_custom_matchers() -> None:
     assert evaluate(near, truth)["car"].true_positives == 1
     # BEV IoU of 2.5/5.5 is below 0.5: a stricter matcher rejects the same pair.
     assert evaluate(near, truth, matcher=IoUMatcher(0.5))["car"].true_positives == 0
-    assert evaluate(near, truth, matcher={"car": IoUMatcher(0.4)}, labels=["car"])[
-        "car"
-    ].true_positives == 1
+    assert (
+        evaluate(near, truth, matcher={"car": IoUMatcher(0.4)}, labels=["car"])[
+            "car"
+        ].true_positives
+        == 1
+    )
 
 
 def test_evaluations_pool_across_frames() -> None:

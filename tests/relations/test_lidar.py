@@ -174,7 +174,10 @@ def _car(x: float, y: float, yaw: float = 0.3, label: str = "car", points: int =
 
 def test_rotated_obstacles_compares_turned_boxes() -> None:
     relation = RotatedObstacles(
-        center_tolerance=0.1, size_tolerance=0.1, yaw_tolerance=2.0, min_points=10,
+        center_tolerance=0.1,
+        size_tolerance=0.1,
+        yaw_tolerance=2.0,
+        min_points=10,
         boundary_margin=0.0,
     )
     source = [_car(10.0, 0.0)]
@@ -194,7 +197,10 @@ def test_rotated_obstacles_compares_turned_boxes() -> None:
 
 def test_rotated_obstacles_exempts_small_unknown_and_edge_objects() -> None:
     relation = RotatedObstacles(
-        center_tolerance=0.1, size_tolerance=0.1, yaw_tolerance=2.0, min_points=10,
+        center_tolerance=0.1,
+        size_tolerance=0.1,
+        yaw_tolerance=2.0,
+        min_points=10,
         boundary_margin=0.5,
     )
     frame = Frame(street().cloud, roi=ROAD)

@@ -379,8 +379,7 @@ def _reconstruct(
     # edge[i]: length of the edge from vertex i to vertex i + 1.
     following = vertices[1:] + vertices[:1]
     edge = [
-        math.hypot(bx - ax, by - ay)
-        for (ax, ay), (bx, by) in zip(vertices, following, strict=True)
+        math.hypot(bx - ax, by - ay) for (ax, ay), (bx, by) in zip(vertices, following, strict=True)
     ]
     bounds = (min_index, max_index)
     span = ((min_index, max_index), (max_index, min_index))

@@ -258,9 +258,7 @@ class ReferencePerception:
         ]
         return sorted(boxes, key=_sort_key)
 
-    def keep_objects(
-        self, clusters: Clusters, top: NDArray[np.float32]
-    ) -> NDArray[np.bool_]:
+    def keep_objects(self, clusters: Clusters, top: NDArray[np.float32]) -> NDArray[np.bool_]:
         """(count,) bool: objects big and tall enough (``top``: highest point above ground)."""
         return (clusters.cells >= self.params.min_cells) & (top >= self.params.min_height)
 
@@ -335,4 +333,3 @@ def _to_box(shape: MinBox, label: str, bottom: float, top: float) -> Box:
 
 def _sort_key(box: Box) -> tuple[float, ...]:
     return (*box.center, *box.size, box.yaw)
-

@@ -194,9 +194,7 @@ def test_fewer_than_four_points_keep_the_axis_aligned_defaults() -> None:
 def test_collinear_points_fall_back_to_the_bounding_rectangle() -> None:
     points = [[x, 2.0 * x + 1.0, 0.0] for x in (5.0, 6.0, 7.0, 8.0)]
     box = min_box(points)
-    np.testing.assert_allclose(
-        box.polygon[:, :2], [[5, 11], [5, 17], [8, 17], [8, 11]], atol=1e-6
-    )
+    np.testing.assert_allclose(box.polygon[:, :2], [[5, 11], [5, 17], [8, 17], [8, 11]], atol=1e-6)
     # The box is fitted to that rectangle, not to the segment.
     assert (box.length, box.width) == pytest.approx((6.0, 3.0), abs=1e-5)
 
