@@ -16,28 +16,5 @@ They build on the strategies, so they are imported only when asked for.
 
 from __future__ import annotations
 
-from pytest_metamorphic.core.relations import (
-    AllOf,
-    CheckContext,
-    Relation,
-    Verdict,
-    approx,
-    cardinality,
-    equal,
-    predicate,
-    subset,
-    superset,
-)
-
-__all__ = [
-    "AllOf",
-    "CheckContext",
-    "Relation",
-    "Verdict",
-    "approx",
-    "cardinality",
-    "equal",
-    "predicate",
-    "subset",
-    "superset",
-]
+from pytest_metamorphic.core.relations import *  # noqa: F403 - the generic relations
+from pytest_metamorphic.core.relations import __all__ as __all__

@@ -58,10 +58,15 @@ def _check_length(value: Any, name: str, minimum: float = 0.0) -> float:
     return float(value)
 
 
-def _width_steps(min_width: float, max_width: float) -> int:
+def _road_options(min_width: Any, max_width: Any, length: Any) -> dict[str, Any]:
+    """Validated width range (as 0.5 m steps above ``min_width``) and length of a road."""
+    min_width = _check_length(min_width, "min_width", 2.0)
+    max_width = _check_length(max_width, "max_width", 2.0)
+    length = _check_length(length, "length", 2.0)
     if max_width < min_width:
         raise InvalidArgument(f"max_width={max_width} must be >= min_width={min_width}")
-    return int((max_width - min_width) / WIDTH_STEP)
+    width_steps = int((max_width - min_width) / WIDTH_STEP)
+    return {"min_width": min_width, "width_steps": width_steps, "length": length}
 
 
 @st.composite
@@ -95,17 +100,9 @@ def road_corridors(
     The sensor is inside the road, at least 1 m from its edges; heading is drawn in whole
     degrees in [-90, 90] and shrinks to 0 (road along x).
     """
-    options = _raster_options(cell_size, extend_dist, raster_range)
-    min_width = _check_length(min_width, "min_width", 2.0)
-    max_width = _check_length(max_width, "max_width", 2.0)
-    length = _check_length(length, "length", 2.0)
-    return _corridor(
-        curved=bool(curved),
-        width_steps=_width_steps(min_width, max_width),
-        min_width=min_width,
-        length=length,
-        **options,
-    )
+    options = _road_options(min_width, max_width, length)
+    raster = _raster_options(cell_size, extend_dist, raster_range)
+    return _corridor(curved=bool(curved), **options, **raster)
 
 
 @st.composite
@@ -128,16 +125,9 @@ def junctions(
     right angles by up to 30 degrees in 5 degree steps; everything shrinks toward a
     straight T at the sensor's position.
     """
-    options = _raster_options(cell_size, extend_dist, raster_range)
-    min_width = _check_length(min_width, "min_width", 2.0)
-    max_width = _check_length(max_width, "max_width", 2.0)
-    length = _check_length(length, "length", 2.0)
-    return _junction(
-        width_steps=_width_steps(min_width, max_width),
-        min_width=min_width,
-        length=length,
-        **options,
-    )
+    options = _road_options(min_width, max_width, length)
+    raster = _raster_options(cell_size, extend_dist, raster_range)
+    return _junction(**options, **raster)
 
 
 @st.composite
