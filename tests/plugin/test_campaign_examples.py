@@ -1,0 +1,58 @@
+"""The README's main job, examples/test_paper_campaign.py, run as a user runs it (fewer
+sources): both tables print, the reports are written, and -n 2 gives the same result."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "test_paper_campaign.py"
+
+
+@pytest.fixture
+def paper_campaign(pytester: pytest.Pytester) -> pytest.Pytester:
+    source = EXAMPLE.read_text(encoding="utf-8")
+    assert "SOURCES = 200" in source  # the README promises 200 scenes
+    pytester.makepyfile(test_paper_campaign=source.replace("SOURCES = 200", "SOURCES = 6"))
+    return pytester
+
+
+def test_main_job_prints_both_tables_and_writes_reports(paper_campaign: pytest.Pytester) -> None:
+    result = paper_campaign.runpytest_subprocess("--mt-campaign", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=16)
+    result.stdout.fnmatch_lines(
+        [
+            "*= campaign MR1 reference pipeline =*",
+            "campaign 'MR1 reference pipeline', seed 0, 6 sources x 3 sizes x 1 follow-up(s) "
+            "(complete); 24 SUT calls, 12 saved*",
+            "*violations of subset*",
+            "*= campaign MR1 mutant count_scaled_radius =*",
+        ]
+    )
+    folder = paper_campaign.path / "mt-campaigns" / "MR1_reference_pipeline"
+    report = json.loads((folder / "report.json").read_text())
+    assert report["complete"] and report["sut_calls"] == 24
+    assert all(size["violations"] == 0 for size in report["sizes"].values())
+    assert (folder / "categories.png").stat().st_size > 0
+    assert (folder / "report.md").read_text().startswith("#")
+
+
+def test_main_job_is_identical_under_xdist(paper_campaign: pytest.Pytester) -> None:
+    pytest.importorskip("xdist")
+    single = paper_campaign.runpytest_subprocess(
+        "--mt-campaign", "--mt-campaign-dir", "one", "-k", "count_scaled", "-p", "no:cacheprovider"
+    )
+    single.assert_outcomes(passed=8, deselected=8)
+    spread = paper_campaign.runpytest_subprocess(
+        "--mt-campaign", "--mt-campaign-dir", "two", "-k", "count_scaled", "-n", "2",
+        "-p", "no:cacheprovider",
+    )  # fmt: skip
+    spread.assert_outcomes(passed=8)
+    name = "MR1_mutant_count_scaled_radius"
+    reports = [
+        json.loads((paper_campaign.path / d / name / "report.json").read_text())
+        for d in ("one", "two")
+    ]
+    assert reports[0] == reports[1]
