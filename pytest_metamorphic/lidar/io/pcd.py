@@ -13,12 +13,14 @@ other tools ignore.
 
 from __future__ import annotations
 
+import functools
+import io
 import math
 import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -41,23 +43,32 @@ PcdData = Literal["ascii", "binary", "binary_compressed"]
 
 #: Headers are a few hundred bytes; anything longer without a DATA line is not a PCD.
 MAX_HEADER_BYTES = 64 * 1024
+#: Bytes read for the header first; more are read only when its DATA line is not in them.
+_FIRST_READ = 4096
+#: O_BINARY: no newline translation on Windows (0 elsewhere).
+_OPEN_FLAGS = os.O_RDONLY | getattr(os, "O_BINARY", 0)
 #: Real PCD records are at most a few kB (a 308-float VFH descriptor is 1232 bytes).
 MAX_POINT_STEP = 1 << 20
 _SIZES = {"F": (4, 8), "U": (1, 2, 4, 8), "I": (1, 2, 4, 8)}
-_KEYWORDS = (
-    "VERSION",
-    "FIELDS",
-    "SIZE",
-    "TYPE",
-    "COUNT",
-    "WIDTH",
-    "HEIGHT",
-    "VIEWPOINT",
-    "POINTS",
-    "DATA",
+_KEYWORDS = frozenset(
+    ("VERSION", "FIELDS", "SIZE", "TYPE", "COUNT", "WIDTH", "HEIGHT", "VIEWPOINT", "POINTS", "DATA")
 )
+_DEFAULT_VIEWPOINT = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 _WRITABLE = "f4 f8 u1 u2 u4 u8 i1 i2 i4 i8"
-_DATA_LINE = re.compile(rb"(?:^|\n)[ \t]*DATA[^\n]*\n", re.IGNORECASE)
+#: The canonical header: comment lines, then the spec's ten lines in the spec's order with
+#: one space after each keyword, as PCL, Open3D and this library write them.
+_CANONICAL = re.compile(
+    rb"(?P<comments>(?:#[^\n]*\n)*)"
+    rb"(?P<layout>VERSION [^\n]*\nFIELDS [^\n]*\nSIZE [^\n]*\nTYPE [^\n]*\nCOUNT [^\n]*\n)"
+    rb"WIDTH (?P<width>[0-9]+)\nHEIGHT (?P<height>[0-9]+)\n"
+    rb"(?P<viewpoint>VIEWPOINT [^\n]*\n)"
+    rb"POINTS (?P<points>[0-9]+)\nDATA (?P<data>ascii|binary_compressed|binary)\n"
+)
+#: Canonical layout lines (VERSION to COUNT, VIEWPOINT) that parsed as a valid header:
+#: their fields, sizes, types, counts and viewpoint. The frames of one sensor share them,
+#: and parsing them is most of the cost of reading a small file.
+_KNOWN_LAYOUTS: dict[tuple[bytes, bytes], tuple] = {}
+_MAX_KNOWN_LAYOUTS = 64
 _FRAME_ID = re.compile(r"#\s*frame_id (.*)")
 _TIMESTAMP = re.compile(r"#\s*timestamp (\S+)\s*")
 
@@ -92,7 +103,7 @@ class PcdHeader:
     points: int
     data: PcdData
     data_offset: int
-    viewpoint: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    viewpoint: tuple[float, ...] = _DEFAULT_VIEWPOINT
     frame_id: str = ""
     timestamp: float | None = None
 
@@ -103,36 +114,46 @@ class PcdHeader:
 
     def dtype(self) -> np.dtype:
         """Structured little-endian dtype of one ``binary`` record (padding skipped)."""
-        names, formats, offsets, offset = [], [], [], 0
-        for field, size, kind, count in zip(
-            self.fields, self.sizes, self.types, self.counts, strict=True
-        ):
-            if field != "_":
-                code = f"<{kind.lower()}{size}"
-                names.append(field)
-                formats.append(code if count == 1 else (code, (count,)))
-                offsets.append(offset)
-            offset += size * count
-        return np.dtype(
-            {"names": names, "formats": formats, "offsets": offsets, "itemsize": self.point_step}
-        )
+        return _record_dtype(self.fields, self.sizes, self.types, self.counts)
+
+
+@functools.lru_cache(maxsize=64)
+def _record_dtype(
+    fields: tuple[str, ...], sizes: tuple[int, ...], types: tuple[str, ...], counts: tuple[int, ...]
+) -> np.dtype:
+    # Cached: the frames of one sensor share a layout, and building a structured dtype
+    # costs as much as parsing the rest of the header.
+    names, formats, offsets, offset = [], [], [], 0
+    for field, size, kind, count in zip(fields, sizes, types, counts, strict=True):
+        if field != "_":
+            code = f"<{kind.lower()}{size}"
+            names.append(field)
+            formats.append(code if count == 1 else (code, (count,)))
+            offsets.append(offset)
+        offset += size * count
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": offset})
 
 
 def read_pcd_header(path: str | os.PathLike[str]) -> PcdHeader:
     """Parse and check the header of a PCD file (nothing after it is read)."""
     path = Path(path)
     try:
-        with path.open("rb") as handle:
-            return _read_header(handle, path)
+        fd = os.open(path, _OPEN_FLAGS)
+        try:
+            return _read_header(fd, path)
+        finally:
+            os.close(fd)
     except OSError as error:
         raise DataError(f"cannot read PCD file: {error.strerror or error}", path=path) from None
 
 
-def _read_header(handle: BinaryIO, path: Path) -> PcdHeader:
-    head = handle.read(4096)
-    if len(head) == 4096 and not _DATA_LINE.search(head):
-        head += handle.read(MAX_HEADER_BYTES - len(head))
-    return _parse_header(head, path)
+def _read_header(fd: int, path: Path) -> PcdHeader:
+    head = os.read(fd, _FIRST_READ)
+    header = _parse(head, path, complete=len(head) < _FIRST_READ)
+    if header is None:  # the DATA line is further on than the first read
+        head += _read_bytes(fd, MAX_HEADER_BYTES - len(head))
+        header = _parse(head, path, complete=True)
+    return header  # type: ignore[return-value]
 
 
 def read_pcd(
@@ -165,20 +186,25 @@ def read_pcd(
       oversized payload, corrupt compressed data, missing x/y/z, non-finite points.
     """
     check_policies(nonfinite, zeros)
-    path = Path(path)
+    path = path if isinstance(path, Path) else Path(path)  # Path(a Path) costs 3 us
     try:
-        with path.open("rb") as handle:
-            return _read_open(handle, path, nonfinite, zeros)
+        # A raw descriptor, not a file object: for a small file the ~5 us saved matter
+        # (the header is one read, the payload one read straight into its array).
+        fd = os.open(path, _OPEN_FLAGS)
+        try:
+            return _read_open(fd, path, nonfinite, zeros)
+        finally:
+            os.close(fd)
     except OSError as error:
         raise DataError(f"cannot read PCD file: {error.strerror or error}", path=path) from None
 
 
-def _read_open(handle: BinaryIO, path: Path, nonfinite: str, zeros: str) -> PointCloud:
-    header = _read_header(handle, path)
+def _read_open(fd: int, path: Path, nonfinite: str, zeros: str) -> PointCloud:
+    header = _read_header(fd, path)
     name = str(path)
     require_xyz(header.fields, name)  # before reading a payload that cannot be used
-    available = os.fstat(handle.fileno()).st_size - header.data_offset
-    handle.seek(header.data_offset)
+    available = os.fstat(fd).st_size - header.data_offset
+    os.lseek(fd, header.data_offset, os.SEEK_SET)
     options = {
         "name": name,
         "organised": header.height > 1,
@@ -188,10 +214,10 @@ def _read_open(handle: BinaryIO, path: Path, nonfinite: str, zeros: str) -> Poin
         "timestamp": header.timestamp,
     }
     if header.data == "binary":
-        return _read_binary(handle, path, header, available, options)
+        return _read_binary(fd, path, header, available, options)
     if header.data == "binary_compressed":
-        return _read_compressed(handle, path, header, available, options)
-    return _read_ascii(handle, path, header, available, options)
+        return _read_compressed(fd, path, header, available, options)
+    return _read_ascii(fd, path, header, available, options)
 
 
 def write_pcd(
@@ -248,13 +274,87 @@ def write_pcd(
 # -- header -----------------------------------------------------------------------------
 
 
-def _parse_header(head: bytes, path: Path) -> PcdHeader:
+def _parse(head: bytes, path: Path, *, complete: bool) -> PcdHeader | None:
+    """The header at the start of ``head`` (None: it goes on past ``head``, see below).
+
+    A header in the canonical form whose layout was seen before is taken from one regex
+    match; any other is parsed line by line (:func:`_parse_header`), and a canonical
+    one's layout is then remembered. Both ways give the same header.
+    """
+    match = _CANONICAL.match(head)
+    if match is not None:
+        header = _parse_canonical(match, path)
+        if header is not None:
+            return header
+    header = _parse_header(head, path, complete=complete)
+    if match is not None and header is not None:
+        if len(_KNOWN_LAYOUTS) >= _MAX_KNOWN_LAYOUTS:
+            _KNOWN_LAYOUTS.clear()
+        layout = (header.fields, header.sizes, header.types, header.counts, header.viewpoint)
+        _KNOWN_LAYOUTS[match["layout"], match["viewpoint"]] = layout
+    return header
+
+
+def _parse_canonical(match: re.Match[bytes], path: Path) -> PcdHeader | None:
+    """The header of a canonical match whose layout is known valid; None to parse it
+    line by line (unknown layout, or anything to report: that parse words the error)."""
+    known = _KNOWN_LAYOUTS.get((match["layout"], match["viewpoint"]))
+    if known is None:
+        return None
+    width, height = int(match["width"]), int(match["height"])
+    if int(match["points"]) != width * height:
+        return None
+    frame_id, timestamp = "", None
+    if match["comments"]:
+        try:
+            comments = match["comments"].decode("utf-8")
+        except UnicodeDecodeError:
+            return None
+        for line in comments.split("\n"):  # not splitlines(): lines end at \n only
+            frame_id, timestamp = _comment(line.strip(), frame_id, timestamp, path)
+    fields, sizes, types, counts, viewpoint = known
+    data = match["data"].decode("ascii")
+    return PcdHeader(
+        fields,
+        sizes,
+        types,
+        counts,
+        width,
+        height,
+        width * height,
+        data,  # type: ignore[arg-type]
+        match.end(),
+        viewpoint,
+        frame_id,
+        timestamp,
+    )
+
+
+def _comment(
+    line: str, frame_id: str, timestamp: float | None, path: Path
+) -> tuple[str, float | None]:
+    """Frame id and timestamp after a (stripped) comment line: this library's two."""
+    if match := _FRAME_ID.fullmatch(line):
+        return match.group(1), timestamp
+    if match := _TIMESTAMP.fullmatch(line):
+        return frame_id, _floats([match.group(1)], "timestamp comment", path)[0]
+    return frame_id, timestamp
+
+
+def _parse_header(head: bytes, path: Path, *, complete: bool) -> PcdHeader | None:
+    """The header at the start of ``head``.
+
+    None when ``head`` ends before the DATA line and is not ``complete`` (more of the
+    file follows: read more and parse again).
+    """
     values: dict[str, list[str]] = {}
     frame_id, timestamp = "", None
     offset = 0
     while True:
         end = head.find(b"\n", offset)
         if end < 0:
+            if not complete:
+                return None
             if len(head) >= MAX_HEADER_BYTES:
                 raise DataError(f"no DATA line in the first {MAX_HEADER_BYTES} bytes", path=path)
             if offset >= len(head):
@@ -262,27 +362,24 @@ def _parse_header(head: bytes, path: Path) -> PcdHeader:
                 raise DataError(f"not a PCD file: {what}", path=path)
             end = len(head)  # a last line without its newline
         try:
-            line = head[offset:end].decode("utf-8").strip()
+            line = head[offset:end].decode("utf-8")
         except UnicodeDecodeError:
             raise DataError(
                 f"not a PCD file: header line at byte {offset} is not text", path=path
             ) from None
         offset = end + 1
-        if line.startswith("#"):
-            if match := _FRAME_ID.fullmatch(line):
-                frame_id = match.group(1)
-            elif match := _TIMESTAMP.fullmatch(line):
-                timestamp = _float(match.group(1), "timestamp comment", path)
+        words = line.split()
+        if not words:
             continue
-        if not line:
+        if words[0][0] == "#":
+            frame_id, timestamp = _comment(line.strip(), frame_id, timestamp, path)
             continue
-        keyword, *rest = line.split()
-        if keyword.upper() not in _KEYWORDS:
-            raise DataError(f"not a PCD file: unknown header line {line[:60]!r}", path=path)
-        keyword = keyword.upper()
+        keyword = words[0].upper()
+        if keyword not in _KEYWORDS:
+            raise DataError(f"not a PCD file: unknown header line {line.strip()[:60]!r}", path=path)
         if keyword in values:
             raise DataError(f"header has two {keyword} lines", path=path)
-        values[keyword] = rest
+        values[keyword] = words[1:]
         if keyword == "DATA":
             break
     return _header_from_values(values, min(offset, len(head)), frame_id, timestamp, path)
@@ -294,32 +391,7 @@ def _header_from_values(
     for required in ("FIELDS", "SIZE", "TYPE", "WIDTH", "HEIGHT"):
         if required not in values:
             raise DataError(f"header has no {required} line", path=path)
-    fields = tuple(values["FIELDS"])
-    if not fields:
-        raise DataError("FIELDS line names no fields", path=path)
-    named = [field for field in fields if field != "_"]
-    if len(set(named)) != len(named):
-        raise DataError(f"FIELDS repeats a name: {' '.join(fields)}", path=path)
-    sizes = tuple(_int(v, "SIZE", path) for v in values["SIZE"])
-    types = tuple(v.upper() for v in values["TYPE"])
-    counts = tuple(_int(v, "COUNT", path) for v in values.get("COUNT", ["1"] * len(fields)))
-    for keyword, items in (("SIZE", sizes), ("TYPE", types), ("COUNT", counts)):
-        if len(items) != len(fields):
-            raise DataError(
-                f"{keyword} has {len(items)} entries for {len(fields)} FIELDS", path=path
-            )
-    for field, size, kind, count in zip(fields, sizes, types, counts, strict=True):
-        if kind not in _SIZES:
-            raise DataError(f"field {field!r} has TYPE {kind!r}; expected F, U or I", path=path)
-        if size not in _SIZES[kind]:
-            raise DataError(f"field {field!r} has TYPE {kind} with SIZE {size}", path=path)
-        if count < 1:
-            raise DataError(f"field {field!r} has COUNT {count}", path=path)
-    step = sum(size * count for size, count in zip(sizes, counts, strict=True))
-    if step > MAX_POINT_STEP:
-        raise DataError(
-            f"fields declare {step} bytes per point (limit {MAX_POINT_STEP})", path=path
-        )
+    fields, sizes, types, counts = _check_layout(values, path)
     width = _single_int(values["WIDTH"], "WIDTH", path)
     height = _single_int(values["HEIGHT"], "HEIGHT", path)
     points = width * height
@@ -327,9 +399,9 @@ def _header_from_values(
         raise DataError(
             f"POINTS {values['POINTS'][0]} differs from WIDTH x HEIGHT = {points}", path=path
         )
-    viewpoint: tuple[float, ...] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    viewpoint = _DEFAULT_VIEWPOINT
     if "VIEWPOINT" in values:
-        viewpoint = tuple(_float(v, "VIEWPOINT", path) for v in values["VIEWPOINT"])
+        viewpoint = _floats(values["VIEWPOINT"], "VIEWPOINT", path)
         if len(viewpoint) != 7 or not all(map(math.isfinite, viewpoint)):
             raise DataError("VIEWPOINT needs 7 finite numbers", path=path)
     data = " ".join(values["DATA"]).lower()
@@ -343,31 +415,72 @@ def _header_from_values(
         width,
         height,
         points,
-        data,
-        offset,  # type: ignore[arg-type]
+        data,  # type: ignore[arg-type]
+        offset,
         viewpoint,
         frame_id,
         timestamp,
     )
 
 
-def _int(text: str, keyword: str, path: Path) -> int:
-    if not text.isdigit():
-        raise DataError(f"{keyword} value {text[:40]!r} is not a non-negative integer", path=path)
-    return int(text)
+_Layout = tuple[tuple[str, ...], tuple[int, ...], tuple[str, ...], tuple[int, ...]]
+
+
+def _check_layout(values: dict[str, list[str]], path: Path) -> _Layout:
+    fields = tuple(values["FIELDS"])
+    if not fields:
+        raise DataError("FIELDS line names no fields", path=path)
+    named = [field for field in fields if field != "_"]
+    if len(set(named)) != len(named):
+        raise DataError(f"FIELDS repeats a name: {' '.join(fields)}", path=path)
+    sizes = _ints(values["SIZE"], "SIZE", path)
+    types = tuple([v.upper() for v in values["TYPE"]])
+    counts = _ints(values.get("COUNT", ["1"] * len(fields)), "COUNT", path)
+    for keyword, items in (("SIZE", sizes), ("TYPE", types), ("COUNT", counts)):
+        if len(items) != len(fields):
+            raise DataError(
+                f"{keyword} has {len(items)} entries for {len(fields)} FIELDS", path=path
+            )
+    step = 0
+    for field, size, kind, count in zip(fields, sizes, types, counts, strict=True):
+        if kind not in _SIZES:
+            raise DataError(f"field {field!r} has TYPE {kind!r}; expected F, U or I", path=path)
+        if size not in _SIZES[kind]:
+            raise DataError(f"field {field!r} has TYPE {kind} with SIZE {size}", path=path)
+        if count < 1:
+            raise DataError(f"field {field!r} has COUNT {count}", path=path)
+        step += size * count
+    if step > MAX_POINT_STEP:
+        raise DataError(
+            f"fields declare {step} bytes per point (limit {MAX_POINT_STEP})", path=path
+        )
+    return fields, sizes, types, counts
+
+
+def _ints(items: list[str], keyword: str, path: Path) -> tuple[int, ...]:
+    """Non-negative decimal integers, or a DataError naming the first item that is not."""
+    # One test of the joined text instead of one per item: headers are parsed per file.
+    joined = "".join(items)
+    if items and not (joined.isascii() and joined.isdigit()):
+        bad = next(text for text in items if not (text.isascii() and text.isdigit()))
+        raise DataError(f"{keyword} value {bad[:40]!r} is not a non-negative integer", path=path)
+    return tuple(map(int, items))
 
 
 def _single_int(items: list[str], keyword: str, path: Path) -> int:
     if len(items) != 1:
         raise DataError(f"{keyword} needs one integer, got {' '.join(items)[:60]!r}", path=path)
-    return _int(items[0], keyword, path)
+    return _ints(items, keyword, path)[0]
 
 
-def _float(text: str, keyword: str, path: Path) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise DataError(f"{keyword} value {text[:40]!r} is not a number", path=path) from None
+def _floats(items: list[str], keyword: str, path: Path) -> tuple[float, ...]:
+    values = []
+    for text in items:
+        try:
+            values.append(float(text))
+        except ValueError:
+            raise DataError(f"{keyword} value {text[:40]!r} is not a number", path=path) from None
+    return tuple(values)
 
 
 def _header_text(cloud: PointCloud, dtype: np.dtype, data: str) -> str:
@@ -411,25 +524,59 @@ def _need(available: int, needed: int, what: str, path: Path) -> None:
 
 
 def _read_binary(
-    handle: BinaryIO, path: Path, header: PcdHeader, available: int, options: dict
+    fd: int, path: Path, header: PcdHeader, available: int, options: dict
 ) -> PointCloud:
-    _need(
-        available,
-        header.points * header.point_step,
-        f"{header.points} points of {header.point_step} bytes",
-        path,
-    )
-    records = np.fromfile(handle, dtype=header.dtype(), count=header.points)
-    if len(records) != header.points:  # the file shrank since fstat()
-        raise DataError(f"expected {header.points} points, read {len(records)}", path=path)
-    return cloud_from_records(records, **options)
+    step = header.point_step
+    size = header.points * step
+    if size > available:  # (the message is only built when it is needed)
+        _need(available, size, f"{header.points} points of {step} bytes", path)
+    records = np.empty(header.points, header.dtype())
+    read = _read_into(fd, records.view(np.uint8))
+    if read != size:  # the file shrank since fstat()
+        raise DataError(f"expected {header.points} points, read {read // step}", path=path)
+    return cloud_from_records(records, owned=True, **options)
+
+
+def _read_into(fd: int, buffer: np.ndarray) -> int:
+    """Fill a uint8 array from ``fd``; the bytes read (fewer only at the end of the file).
+
+    Straight into the array: ``np.fromfile`` goes through C stdio and is ~20% slower on
+    a 1 MB payload.
+    """
+    view = memoryview(buffer)
+    total = 0
+    while total < len(view):
+        count = _read_some(fd, view[total:])
+        if not count:
+            break
+        total += count
+    return total
+
+
+def _read_some(fd: int, view: memoryview) -> int:
+    if hasattr(os, "readv"):  # POSIX
+        return os.readv(fd, [view])
+    with io.FileIO(fd, "rb", closefd=False) as raw:  # Windows
+        return raw.readinto(view)
+
+
+def _read_bytes(fd: int, size: int) -> bytes:
+    """Up to ``size`` bytes from ``fd`` (fewer only at the end of the file)."""
+    chunks = []
+    while size > 0:
+        chunk = os.read(fd, size)
+        if not chunk:
+            break
+        chunks.append(chunk)
+        size -= len(chunk)
+    return b"".join(chunks)
 
 
 def _read_compressed(
-    handle: BinaryIO, path: Path, header: PcdHeader, available: int, options: dict
+    fd: int, path: Path, header: PcdHeader, available: int, options: dict
 ) -> PointCloud:
     _need(available, 8, "the compressed-size words", path)
-    compressed, uncompressed = (int(v) for v in np.frombuffer(handle.read(8), "<u4"))
+    compressed, uncompressed = (int(v) for v in np.frombuffer(_read_bytes(fd, 8), "<u4"))
     expected = header.points * header.point_step
     if uncompressed != expected:
         raise DataError(
@@ -442,7 +589,7 @@ def _read_compressed(
         raise DataError(
             f"{compressed} LZF bytes cannot expand to the declared {uncompressed}", path=path
         )
-    packed = handle.read(compressed)
+    packed = _read_bytes(fd, compressed)
     try:
         raw = _lzf.decompress(packed, uncompressed)
     except ValueError as error:
@@ -461,13 +608,13 @@ def _read_compressed(
 
 
 def _read_ascii(
-    handle: BinaryIO, path: Path, header: PcdHeader, available: int, options: dict
+    fd: int, path: Path, header: PcdHeader, available: int, options: dict
 ) -> PointCloud:
     per_point = sum(header.counts)
     # Every value takes at least one character and one separator: bound before parsing.
     _need(available + 1, 2 * header.points * per_point, f"{header.points} ascii points", path)
     try:
-        tokens = handle.read().decode("ascii").split()
+        tokens = _read_bytes(fd, available).decode("ascii").split()
     except UnicodeDecodeError:
         raise DataError("ascii payload holds non-ASCII bytes", path=path) from None
     if len(tokens) != header.points * per_point:
