@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud, iter_chunks
+from pytest_metamorphic.lidar.cloud import PointCloud, column_bounds, iter_chunks
 
 FINITE = st.floats(-1e4, 1e4, allow_nan=False, width=32)
 
@@ -180,6 +180,37 @@ def test_with_points_bounds_and_empty():
     assert len(empty) == 0 and empty.fields["ring"].dtype == np.uint8
     with pytest.raises(DataError, match="no bounds"):
         empty.bounds()
+
+
+@given(
+    n=st.integers(1, 700) | st.sampled_from([255, 256, 257, 512, 513]),
+    k=st.integers(1, 5),
+    dtype=st.sampled_from([np.float32, np.float64, np.int16]),
+    special=st.sampled_from([None, np.nan, np.inf, -np.inf]),
+    seed=st.integers(0, 2**32 - 1),
+)
+@settings(max_examples=80)
+def test_column_bounds_are_the_per_column_min_and_max(n, k, dtype, special, seed):
+    rng = np.random.default_rng(seed)
+    array = (rng.standard_normal((n, k)) * 1000).astype(dtype)
+    if special is not None and dtype != np.int16:
+        array[rng.integers(n), rng.integers(k)] = special  # NaN propagates like numpy.min
+    expected = np.stack([array.min(axis=0), array.max(axis=0)])
+    got = column_bounds(array)
+    assert got.dtype == array.dtype and got.shape == (2, k)
+    assert np.array_equal(got, expected, equal_nan=dtype != np.int16)
+    # Columns are not mixed up across the folded rows (each column has its own range).
+    shifted = array.astype(np.float64) + np.arange(k) * 1e4
+    assert np.array_equal(column_bounds(shifted)[1], shifted.max(axis=0), equal_nan=True)
+
+
+def test_column_bounds_refuses_what_has_no_bounds():
+    with pytest.raises(InvalidArgument, match=r"n >= 1, got \(0, 4\)"):
+        column_bounds(np.zeros((0, 4)))
+    with pytest.raises(InvalidArgument, match=r"got \(5,\)"):
+        column_bounds(np.zeros(5))
+    cloud = PointCloud(np.arange(4000, dtype=np.float32).reshape(1000, 4) - 2000)
+    assert cloud.bounds().tolist() == [[-2000, -1999, -1998, -1997], [1996, 1997, 1998, 1999]]
 
 
 def test_equals_compares_everything():

@@ -117,18 +117,18 @@ def cloud_from_records(
 ) -> PointCloud:
     """:func:`cloud_from_columns` for a 1-D structured array (one record per point).
 
-    When x, y, z are consecutive little-endian float32 (KITTI, PCL's PointXYZ(I), Velodyne
-    and Ouster drivers, this library's writers), they are taken with one 16-byte copy per
-    record.
+    The cloud keeps the records in memory of its own: extra fields are views of them,
+    and so are the points when the records are exactly x, y, z, intensity float32.
+    Otherwise, when x, y, z are consecutive little-endian float32 (PCL's PointXYZ(I),
+    Velodyne and Ouster drivers, this library's writers), they are taken with one 16-byte
+    copy per record.
 
     Parameters
     ----------
     records : (n,) structured ndarray
     owned : bool
       ``records`` is memory the reader allocated for this cloud alone (a payload read
-      into a fresh array), not a file or message buffer that others hold: the points
-      are then a view of it when the records are exactly x, y, z, intensity float32, and
-      extra fields are views of it rather than copies.
+      into a fresh array). If not (a message buffer), the records are first copied.
     name, organised, nonfinite, zeros, frame_id, timestamp
       As for :func:`cloud_from_columns`.
     """
@@ -146,11 +146,16 @@ def cloud_from_records(
             opaque = np.dtype((np.void, records.dtype.itemsize))
             records = records.view(opaque).take(np.flatnonzero(keep)).view(records.dtype)
             owned = True
-    points = _points_of_records(records, owned)
+    if not owned:
+        # One block copy (memcpy, into aligned memory) instead of a strided copy per field
+        # out of a buffer that is often misaligned (a PointCloud2's data starts wherever
+        # its header ends): a 9-field Ouster scan decodes ~2x faster.
+        records = np.ascontiguousarray(records).view(np.uint8).copy().view(records.dtype)
+    points = _points_of_records(records)
     if points is None:
         points = _points_of_columns({key: records[key] for key in COLUMNS if key in layout})
     fields = {key: records[key] for key in names if key not in COLUMNS}
-    return _finish(points, fields, name, nonfinite, frame_id, timestamp, dropped_zero, owned)
+    return _finish(points, fields, name, nonfinite, frame_id, timestamp, dropped_zero, owned=True)
 
 
 def _check_coordinates(shapes: Mapping[str, tuple[int, ...]], name: str) -> None:
@@ -173,6 +178,7 @@ def _finish(
     frame_id: str,
     timestamp: float | None,
     dropped_zero: int,
+    *,
     owned: bool = False,
 ) -> PointCloud:
     fields = {key: _field(value, owned) for key, value in columns.items() if key not in COLUMNS}
@@ -190,9 +196,9 @@ def _finish(
 def _field(value: np.ndarray, owned: bool) -> np.ndarray:
     """An extra field in native byte order.
 
-    A view of a file or message buffer is copied into contiguous memory of its own (the
-    view would keep the whole buffer alive, and others may hold it); an array that owns
-    its memory (a fresh compaction) or views a buffer the reader ``owned`` is kept.
+    A view of memory the reader ``owned`` (its own copy of the records) is kept, as is an
+    array owning contiguous memory (a fresh compaction); a view of anything else (a
+    decompressed payload) is copied, since it would keep that whole buffer alive.
     """
     native = value.dtype.newbyteorder("=")
     if value.dtype == native and (owned or (value.base is None and value.flags.c_contiguous)):
@@ -220,14 +226,14 @@ def _points_of_columns(columns: Mapping[str, np.ndarray]) -> np.ndarray:
     return points
 
 
-def _points_of_records(records: np.ndarray, owned: bool) -> np.ndarray | None:
+def _points_of_records(records: np.ndarray) -> np.ndarray | None:
     """(n, 4) float32 points of records whose x, y, z are consecutive ``<f4``, else None.
 
-    Exactly x, y, z, intensity float32 in memory the reader ``owned``: a view, no copy.
+    Records that are exactly x, y, z, intensity float32 are viewed, not copied.
     """
     if not (_NATIVE_LITTLE and records.flags.c_contiguous and len(records)):
         return None
-    if owned and records.dtype == _FAST_LAYOUT:
+    if records.dtype == _FAST_LAYOUT:
         return records.view(np.float32).reshape(len(records), 4)
     start = _xyz_offset(records.dtype)
     if start is None:

@@ -32,7 +32,7 @@ import heapq
 import io
 import math
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -236,10 +236,10 @@ class BagIndex:
         with _open(self.path) as reader:
             _, connections = _connections(reader, self.topic, self.path)
             found = reader.messages(connections=connections, start=stamp, stop=stamp + 1)
-            for position, (connection, _, raw) in enumerate(found):
+            for position, (_, _, raw) in enumerate(found):
                 if position == rank:
                     name = f"{self.path} [{self.topic} #{index}]"
-                    return _decode(reader, connection, raw, name, nonfinite, zeros)
+                    return _decode(_deserializer(reader), raw, name, nonfinite, zeros)
         raise DataError(f"message {index} on {self.topic} vanished since indexing", path=self.path)
 
     def __iter__(self) -> Iterator[PointCloud]:
@@ -259,17 +259,44 @@ def _iterate(
 ) -> Iterator[PointCloud]:
     with _open(path) as reader:
         topic, connections = _connections(reader, topic, path)
-        for index, (connection, _, raw) in enumerate(reader.messages(connections=connections)):
+        deserialize = _deserializer(reader)
+        for index, (_, _, raw) in enumerate(reader.messages(connections=connections)):
             name = f"{path} [{topic} #{index}]"
-            yield _decode(reader, connection, raw, name, nonfinite, zeros)
+            yield _decode(deserialize, raw, name, nonfinite, zeros)
 
 
 def _decode(
-    reader: Any, connection: Any, raw: bytes, name: str, nonfinite: str, zeros: str
+    deserialize: Callable[[bytes], Any], raw: bytes, name: str, nonfinite: str, zeros: str
 ) -> PointCloud:
     with wrap_errors(name, "PointCloud2 message"):
-        message = reader.deserialize(raw, connection.msgtype)
+        message = deserialize(raw)
     return pointcloud2_to_cloud(message, name=name, nonfinite=nonfinite, zeros=zeros)  # type: ignore[arg-type]
+
+
+def _deserializer(reader: Any) -> Callable[[bytes], Any]:
+    """How to deserialize this bag's PointCloud2 messages.
+
+    rosbags builds a new typestore for every bag it opens, and the first message of a
+    type costs ~8 ms of code generation in each (more than decoding a 131 072-point
+    message). When the bag defines PointCloud2 exactly as our cached typestore does (the
+    same type hash, which covers the nested types), that store's deserializer, generated
+    once per process, does the same work.
+    """
+    ros1 = not reader.is2
+    try:
+        same = reader.typestore.hash_rihs01(POINTCLOUD2) == _type_hash(ros1, POINTCLOUD2)
+    except Exception:  # a definition rosbags cannot hash: let it deserialize (or fail) itself
+        same = False
+    if same:
+        store = _typestore(ros1)
+        method = store.deserialize_ros1 if ros1 else store.deserialize_cdr
+        return functools.partial(method, typename=POINTCLOUD2)
+    return functools.partial(reader.deserialize, typ=POINTCLOUD2)
+
+
+@functools.cache
+def _type_hash(ros1: bool, msgtype: str) -> str:
+    return _typestore(ros1).hash_rihs01(msgtype)
 
 
 def index_bag(path: str | os.PathLike[str], *, topic: str | None = None) -> BagIndex:
@@ -379,10 +406,11 @@ def pointcloud2_to_cloud(
             f"(row_step {row_step}, point_step {point_step}) need {needed}",
             path=name,
         )
+    owned = True  # the records below are a fresh array, not a view of the message
     if not count:
         records = np.empty(0, dtype)
     elif height == 1 or row_step == width * point_step:
-        records = np.frombuffer(data, dtype, count)
+        records, owned = np.frombuffer(data, dtype, count), False
     else:  # rows padded beyond width * point_step: gather the rows, then view them
         rows = np.lib.stride_tricks.as_strided(
             data, (height, width * point_step), (row_step, 1), writeable=False
@@ -397,6 +425,7 @@ def pointcloud2_to_cloud(
         zeros=zeros,
         frame_id=frame_id,
         timestamp=seconds,
+        owned=owned,
     )
 
 

@@ -11,7 +11,7 @@ from hypothesis.extra import numpy as hnp
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.io import _lzf, read_pcd, read_pcd_header, write_pcd
+from pytest_metamorphic.lidar.io import _lzf, pcd, read_pcd, read_pcd_header, write_pcd
 
 VLP16 = "nebula_velodyne/vlp16/1673400472138016708.pcd"
 VLP32 = "nebula_velodyne/vlp32/1713492677464078412.pcd"
@@ -239,6 +239,114 @@ def test_write_refusals(tmp_path):
         write_pcd(PointCloud(np.zeros((1, 4))), tmp_path / "a.pcd")
 
 
+# -- canonical headers of a known layout: one regex match, the same header ---------------
+
+
+@given(cloud=rich_clouds(), data=st.sampled_from(["binary", "binary_compressed", "ascii"]))
+@settings(max_examples=40)
+def test_known_canonical_headers_parse_as_line_by_line(tmp_path_factory, cloud, data):
+    path = write_pcd(cloud, tmp_path_factory.mktemp("pcd") / "c.pcd", data=data)
+    head = path.read_bytes()[: pcd.MAX_HEADER_BYTES]
+    reference = pcd._parse_header(head, path, complete=True)
+    assert read_pcd_header(path) == reference  # the first read remembers the layout
+    match = pcd._CANONICAL.match(head)
+    assert match and pcd._parse_canonical(match, path) == reference
+    assert read_pcd(path, zeros="keep").frame_id == cloud.frame_id
+
+
+def test_real_headers_parse_as_line_by_line(shared_data):
+    for name in ("fast_gicp/251370668.pcd", VLP16, VLP32):
+        path = shared_data / name
+        head = path.read_bytes()[:4096]
+        reference = pcd._parse_header(head, path, complete=False)
+        assert read_pcd_header(path) == read_pcd_header(path) == reference
+        assert pcd._parse_canonical(pcd._CANONICAL.match(head), path) == reference
+
+
+def test_known_layout_still_gets_every_header_check(tmp_path):
+    payload = np.zeros(8, "<f4").tobytes()
+    read_pcd(_write(tmp_path, _header(), payload))  # the layout is known from here on
+    for content, message in [
+        (_header(POINTS="3"), r"POINTS 3 differs from WIDTH x HEIGHT = 2"),
+        (b"# timestamp soon\n" + _header(), "timestamp comment value 'soon' is not a number"),
+        (b"# caf\xe9\n" + _header(), "header line at byte 0 is not text"),
+        (_header(WIDTH="3", POINTS="3"), "needs 48 bytes but only 32 follow"),
+    ]:
+        with pytest.raises(DataError, match=message):
+            read_pcd(_write(tmp_path, content, payload, name="again.pcd"))
+    cloud = read_pcd(_write(tmp_path, b"# frame_id a b\n" + _header(), payload, name="f.pcd"))
+    assert cloud.frame_id == "a b" and len(cloud) == 2
+
+
+# -- record layouts: the block copy of x, y, z against numpy's own decoding -------------
+
+LAYOUTS = {
+    "PointXYZI": ("x y z intensity", "4 4 4 4", "F F F F"),
+    "x y z only": ("x y z", "4 4 4", "F F F"),
+    "x y z at the end of each record": ("_ x y z", "4 4 4 4", "U F F F"),
+    "uint8 intensity, fields after it": ("x y z intensity ring t", "4 4 4 1 2 8", "F F F U U F"),
+    "float64 intensity": ("x y z intensity", "4 4 4 8", "F F F F"),
+    "padding between z and intensity": ("x y z _ intensity", "4 4 4 4 4", "F F F U F"),
+    "not consecutive": ("x z y intensity", "4 4 4 4", "F F F F"),
+    "float64 coordinates": ("x y z", "8 8 8", "F F F"),
+}
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+@pytest.mark.parametrize("n", [0, 1, 2, 257])
+def test_record_layouts_decode_like_numpy(tmp_path, layout, n):
+    fields, sizes, types = LAYOUTS[layout]
+    names = fields.split()
+    layout = zip(names, sizes.split(), types.split(), strict=True)
+    dtype = np.dtype([
+        (name if name != "_" else f"pad{i}", f"<{kind.lower()}{size}")
+        for i, (name, size, kind) in enumerate(layout)
+    ])  # fmt: skip
+    rng = np.random.default_rng(n)
+    records = np.zeros(n, dtype)
+    for name in dtype.names:
+        records[name] = rng.integers(0, 200, n) if dtype[name].kind == "u" else rng.normal(0, 50, n)
+    header = _header(FIELDS=fields, SIZE=sizes, TYPE=types, COUNT=" ".join(["1"] * len(names)),
+                     WIDTH=str(n), POINTS=str(n))  # fmt: skip
+    cloud = read_pcd(_write(tmp_path, header, records.tobytes()), zeros="keep")
+    columns = [records[c] if c in names else np.zeros(n) for c in ("x", "y", "z", "intensity")]
+    assert np.array_equal(cloud.points, np.stack(columns, axis=1).astype(np.float32))
+    extra = [name for name in names if name not in ("x", "y", "z", "intensity", "_")]
+    assert list(cloud.fields) == extra
+    for name in extra:
+        assert cloud.fields[name].dtype == dtype[name]
+        assert np.array_equal(cloud.fields[name], records[name])
+
+
+def test_intensity_beyond_float32_meets_the_nonfinite_policy(tmp_path):
+    records = np.zeros(3, [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f8")])
+    records["x"] = [1, 2, 3]
+    records["intensity"] = [1.0, 1e39, 2.0]
+    header = _header(SIZE="4 4 4 8", WIDTH="3", POINTS="3")
+    path = _write(tmp_path, header, records.tobytes())
+    with pytest.raises(
+        DataError, match=r"1 point\(s\) have NaN or infinite values \(first at row 1"
+    ):
+        read_pcd(path)
+    assert read_pcd(path, nonfinite="drop").points[:, 3].tolist() == [1.0, 2.0]
+
+
+def test_fields_are_writable_and_independent(shared_data):
+    cloud = read_pcd(shared_data / VLP16)
+    before = {key: value.copy() for key, value in cloud.fields.items()}
+    points = cloud.points.copy()
+    cloud.fields["channel"][:] = 99
+    cloud.fields["azimuth"] += 1
+    assert cloud.fields["channel"].tolist() == [99] * len(cloud)
+    for key in ("return_type", "elevation", "distance", "time_stamp"):
+        assert np.array_equal(cloud.fields[key], before[key])
+    assert np.array_equal(cloud.points, points)
+    again = read_pcd(shared_data / VLP16)
+    assert np.array_equal(again.fields["channel"], before["channel"])
+    fast = read_pcd(shared_data / "fast_gicp/251370668.pcd")
+    assert fast.points.flags.writeable and fast.points.flags.c_contiguous
+
+
 # -- malformed headers: each one a DataError that names the file and the problem --------
 
 BAD_HEADERS = [
@@ -256,6 +364,7 @@ BAD_HEADERS = [
     (_header(COUNT="1 1 1 999999999"), "bytes per point"),
     (_header(WIDTH="-2"), "WIDTH value '-2' is not a non-negative integer"),
     (_header(WIDTH="2 3"), "WIDTH needs one integer"),
+    (_header(WIDTH="\u00b2"), "WIDTH value '\u00b2' is not a non-negative integer"),  # isdigit()
     (_header(POINTS="3"), r"POINTS 3 differs from WIDTH x HEIGHT = 2"),
     (_header(VIEWPOINT="0 0 0"), "VIEWPOINT needs 7"),
     (_header(VIEWPOINT="0 0 0 1 0 0 x"), "VIEWPOINT value 'x'"),

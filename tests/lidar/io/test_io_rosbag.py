@@ -12,7 +12,7 @@ from hypothesis.extra import numpy as hnp
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.io import bag_topics, index_bag, iter_bag, read_bag, write_bag
+from pytest_metamorphic.lidar.io import bag_topics, index_bag, iter_bag, read_bag, rosbag, write_bag
 from pytest_metamorphic.lidar.io.rosbag import cloud_to_pointcloud2, pointcloud2_to_cloud
 
 OUSTER = "pointcloudset_ouster/test_converted.bag"
@@ -267,6 +267,56 @@ def test_write_bag_refusals(tmp_path):
     (tmp_path / "folder").mkdir()
     with pytest.raises(InvalidArgument, match="not a ROS 2 bag; refusing"):
         write_bag(cloud, tmp_path / "folder", overwrite=True)
+
+
+@pytest.mark.parametrize("storage", ["rosbag1", "sqlite3", "mcap"])
+def test_cached_deserializer_decodes_as_rosbags_own(tmp_path, monkeypatch, storage):
+    rng = np.random.default_rng(3)
+    clouds = [
+        PointCloud(rng.normal(size=(50, 4)), fields={"ring": rng.integers(0, 64, 50, np.uint8)},
+                   frame_id="velo", timestamp=10.5 + k)
+        for k in range(3)
+    ]  # fmt: skip
+    bag = write_bag(clouds, tmp_path / ("b.bag" if storage == "rosbag1" else "b"), storage=storage)
+    with rosbag._open(bag) as reader:
+        # The bag defines PointCloud2 as our typestore does: its deserializer is reused.
+        assert rosbag._deserializer(reader).func.__self__ is rosbag._typestore(not reader.is2)
+    cached = list(iter_bag(bag))
+    monkeypatch.setattr(rosbag, "_type_hash", lambda ros1, msgtype: "another definition")
+    with rosbag._open(bag) as reader:
+        assert rosbag._deserializer(reader).func.__self__ is reader
+    own = list(iter_bag(bag))
+    assert len(cached) == len(own) == 3
+    for mine, theirs, cloud in zip(cached, own, clouds, strict=True):
+        assert mine.equals(theirs) and mine.equals(cloud)
+
+
+def test_misaligned_message_buffer_decodes_into_memory_of_its_own():
+    layout = np.dtype(
+        {"names": ["x", "y", "z", "intensity", "ring", "t"],
+         "formats": ["<f4", "<f4", "<f4", "<f4", "u1", "<u4"],
+         "offsets": [0, 4, 8, 16, 20, 24], "itemsize": 28}
+    )  # fmt: skip
+    rng = np.random.default_rng(5)
+    records = np.zeros(300, layout)
+    for name in ("x", "y", "z", "intensity"):
+        records[name] = rng.normal(size=300)
+    records["ring"] = rng.integers(0, 64, 300)
+    records["t"] = rng.integers(0, 2**32, 300)
+    message = _message(records)
+    # A PointCloud2's data starts wherever the serialised header ends: 3 bytes in, here.
+    message.data = np.frombuffer(b"\xee" * 3 + records.tobytes(), np.uint8)[3:]
+    for zeros in ("keep", "auto"):
+        cloud = pointcloud2_to_cloud(message, zeros=zeros)
+        expected = np.stack([records[c] for c in ("x", "y", "z", "intensity")], axis=1)
+        assert np.array_equal(cloud.points, expected)
+        for name in ("ring", "t"):
+            field = cloud.fields[name]
+            assert np.array_equal(field, records[name]) and field.dtype.isnative
+            assert field.flags.writeable and not np.shares_memory(field, message.data)
+        assert not np.shares_memory(cloud.points, message.data)
+        cloud.fields["ring"][:] = 0
+        assert np.array_equal(cloud.fields["t"], records["t"])
 
 
 # -- PointCloud2 layouts --------------------------------------------------------------------
