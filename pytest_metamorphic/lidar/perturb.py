@@ -483,7 +483,8 @@ class DropPoints:
         return frame.with_cloud(frame.cloud[keep])
 
     def params(self) -> dict[str, Any]:
-        return {"dropped": len(np.unique(self.indices)), "indices": self.indices.tolist()}
+        # The object itself, so the engine can reduce a violating drop to the few that matter.
+        return {"dropped": len(np.unique(self.indices)), "drop_points": self}
 
     def __repr__(self) -> str:
         return f"DropPoints({_short_list(self.indices)})"
@@ -504,7 +505,7 @@ class DuplicatePoints:
         return frame.with_cloud(PointCloud.concatenate([frame.cloud, copies]))
 
     def params(self) -> dict[str, Any]:
-        return {"duplicated": len(self.indices), "indices": self.indices.tolist()}
+        return {"duplicated": len(self.indices), "duplicate_points": self}
 
     def __repr__(self) -> str:
         return f"DuplicatePoints({_short_list(self.indices)})"

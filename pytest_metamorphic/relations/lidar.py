@@ -50,6 +50,7 @@ from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
 from pytest_metamorphic.lidar.perturb import (
     PAPER_NOISE_SIZES,
     SEED_BITS,
+    DropPoints,
     DuplicatePoints,
     NoiseOutsideROI,
     RotateAboutSensor,
@@ -221,17 +222,14 @@ def outside_removal(
             raise InvalidArgument(f"{frame!r} has no ROI; outside_removal needs frame.roi")
         outside = np.flatnonzero(~frame.roi.contains(frame.cloud.points, method=method))
         if len(outside) == 0:
-            return st.just(Followup(frame, params={"removed": 0}))
+            return st.just(Followup(frame, params={"dropped": 0}))
 
         def drop(choice: tuple[bool, list[int]]) -> Followup:
             everything, picks = choice
             rows = outside if everything else outside[np.asarray(picks, dtype=np.intp)]
-            keep = np.ones(len(frame.cloud), dtype=bool)
-            keep[rows] = False
-            params = {"removed": len(rows), "all_outside": everything, "method": method}
-            if not everything:
-                params["indices"] = rows.tolist()
-            return Followup(frame.with_cloud(frame.cloud[keep]), params=params)
+            removal = DropPoints(rows)
+            params = {**removal.params(), "all_outside": everything, "method": method}
+            return Followup(removal.apply(frame), params=params)
 
         picks = st.lists(
             st.integers(0, len(outside) - 1),
@@ -270,8 +268,9 @@ def duplication_invariance(
 
         def repeat(rows: NDArray[np.intp], what: str) -> Followup:
             perturbation = DuplicatePoints(rows)
-            params = {"duplicated": len(rows), "what": what}
-            return Followup(perturbation.apply(frame), params=params)
+            return Followup(
+                perturbation.apply(frame), params={**perturbation.params(), "what": what}
+            )
 
         def packet(start: int) -> Followup:
             rows = np.arange(start, min(start + PACKET_POINTS, count), dtype=np.intp)

@@ -29,7 +29,7 @@ from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perturb import DropPoints, DuplicatePoints, NoiseOutsideROI
-from pytest_metamorphic.relations.lidar import duplication_invariance, mr1_subset
+from pytest_metamorphic.relations.lidar import duplication_invariance, mr1_subset, outside_removal
 from tests.core.lidar_cases import (
     MR1,
     assert_minimal_hiding_set,
@@ -216,3 +216,35 @@ def test_lidar_perturbations_are_reducible_lazily() -> None:
     drop = as_reducible(DropPoints(np.array([4, 9, 2])))
     assert isinstance(drop, IndexEditReduction) and drop.restrict([2]).indices.tolist() == [2]
     assert drop.to_json() == {"type": "DropPoints", "indices": [4, 9, 2]}
+
+
+@pytest.mark.parametrize(
+    ("name", "relation", "index", "key"),
+    [
+        ("raw_point_count", duplication_invariance(), 1, "duplicate_points"),
+        ("roi_off_by_one", outside_removal(), 3, "drop_points"),
+    ],
+)
+def test_engine_reduces_repeated_and_removed_points(name, relation, index, key) -> None:
+    # Point edits carry their DuplicatePoints / DropPoints object in the follow-up's
+    # params, so the engine reduces them like injected points.
+    system = mutant(name)
+    frame = kitti(index)
+
+    @settings(database=None, derandomize=True, max_examples=20, phases=[Phase.generate])
+    @metamorphic(source=st.just(frame), relations=[relation], followups=2)
+    def test(frame):
+        return system(frame)
+
+    with pytest.raises(MetamorphicViolation) as caught:
+        test()
+    record = caught.value.record
+    reduction = record.reduction
+    assert reduction is not None and reduction.key == key
+    assert reduction.proven_minimal and len(reduction.indices) < reduction.original_size
+    kept = reduction.perturbation.indices
+    edit = type(record.followup.params[key])
+    assert system(edit(kept).apply(frame)) != system(frame)
+    for position in range(len(kept)):
+        assert system(edit(np.delete(kept, position)).apply(frame)) == system(frame)
+    assert f"minimal follow-up: {len(kept)} of {reduction.original_size}" in str(caught.value)

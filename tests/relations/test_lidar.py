@@ -21,6 +21,7 @@ from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant
 from pytest_metamorphic.lidar.perturb import (
+    DropPoints,
     DuplicatePoints,
     NoiseOutsideROI,
     PermutePoints,
@@ -222,7 +223,8 @@ def test_outside_removal_removes_only_outside_points(item) -> None:
     inside_points = frame.cloud.points[ROAD.contains(frame.cloud.points)]
     kept = item.input.cloud.points
     assert np.array_equal(kept[ROAD.contains(kept)], inside_points)
-    assert item.params["removed"] == len(frame.cloud) - len(kept) > 0
+    assert item.params["dropped"] == len(frame.cloud) - len(kept) > 0
+    assert isinstance(item.params["drop_points"], DropPoints)
 
 
 def test_mutants_are_selectable_by_name_and_differ_from_the_reference() -> None:

@@ -149,7 +149,7 @@ def test_point_edits(data):
     drop = data.draw(dropped_points(source, max_size=50))
     assert len(drop.input.cloud) == n - drop.params["dropped"]
     dup = data.draw(duplicated_points(source, max_size=50))
-    indices = dup.params["indices"]
+    indices = dup.params["duplicate_points"].indices
     assert np.array_equal(dup.input.cloud.points[n:], source.cloud.points[indices])
     perm = data.draw(permuted_points(source))
     assert len(perm.input.cloud) == n
@@ -168,7 +168,8 @@ def test_point_edits(data):
 
 def test_point_edits_shrink_to_the_simplest_edit():
     source = street()
-    assert find(dropped_points(source), lambda f: True, settings=FIND).params["indices"] == [0]
+    simplest = find(dropped_points(source), lambda f: True, settings=FIND)
+    assert simplest.params["drop_points"].indices.tolist() == [0]
     assert find(rotated_frames(source), lambda f: True, settings=FIND).params["theta_deg"] == 0.0
     big = find(rotated_frames(source), lambda f: abs(f.params["theta_deg"]) > 45, settings=FIND)
     assert big.params["theta_deg"] == pytest.approx(45.1)
