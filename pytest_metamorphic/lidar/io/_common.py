@@ -58,11 +58,17 @@ def check_policies(nonfinite: object, zeros: object) -> None:
 
 def require_xyz(names: Iterable[str], name: str) -> None:
     """Raise DataError unless the field names include x, y and z."""
-    names = list(names)
+    problem = _missing_xyz(tuple(names))
+    if problem:
+        raise DataError(problem, path=name)
+
+
+def _missing_xyz(names: tuple[str, ...]) -> str | None:
     missing = [axis for axis in "xyz" if axis not in names]
-    if missing:
-        shown = sorted(set(names) - {"_"})
-        raise DataError(f"no {'/'.join(missing)} field; the fields are {shown}", path=name)
+    if not missing:
+        return None
+    shown = sorted(set(names) - {"_"})
+    return f"no {'/'.join(missing)} field; the fields are {shown}"
 
 
 def cloud_from_columns(
@@ -91,7 +97,9 @@ def cloud_from_columns(
       As for :class:`PointCloud` and the readers.
     """
     require_xyz(columns, name)
-    _check_coordinates({key: columns[key].shape[1:] for key in COLUMNS if key in columns}, name)
+    problem = _coordinates_problem({k: columns[k].shape[1:] for k in COLUMNS if k in columns})
+    if problem:
+        raise DataError(problem, path=name)
     dropped_zero = 0
     if _drops_zeros(zeros, organised):
         # Compact first: every later copy then moves only the real points.
@@ -132,10 +140,9 @@ def cloud_from_records(
     name, organised, nonfinite, zeros, frame_id, timestamp
       As for :func:`cloud_from_columns`.
     """
-    names = records.dtype.names or ()
-    require_xyz(names, name)
-    layout = records.dtype.fields or {}
-    _check_coordinates({key: layout[key][0].shape for key in COLUMNS if key in layout}, name)
+    problem = _records_problem(records.dtype)
+    if problem:
+        raise DataError(problem, path=name)
     dropped_zero = 0
     if _drops_zeros(zeros, organised):
         # One gather of whole records beats compacting each column separately; taking
@@ -152,22 +159,27 @@ def cloud_from_records(
         # its header ends): a 9-field Ouster scan decodes ~2x faster.
         records = np.ascontiguousarray(records).view(np.uint8).copy().view(records.dtype)
     points = _points_of_records(records)
+    names = records.dtype.names or ()
     if points is None:
-        points = _points_of_columns({key: records[key] for key in COLUMNS if key in layout})
+        points = _points_of_columns({key: records[key] for key in COLUMNS if key in names})
     fields = {key: records[key] for key in names if key not in COLUMNS}
     return _finish(points, fields, name, nonfinite, frame_id, timestamp, dropped_zero, owned=True)
 
 
-def _check_coordinates(shapes: Mapping[str, tuple[int, ...]], name: str) -> None:
-    """Raise DataError unless x, y, z and intensity have one value per point.
+@functools.lru_cache(maxsize=64)
+def _records_problem(dtype: np.dtype) -> str | None:
+    """Why records of this dtype cannot make a cloud, or None (cached: frames share one)."""
+    names = dtype.names or ()
+    shapes = {key: dtype.fields[key][0].shape for key in COLUMNS if key in names}  # type: ignore[index]
+    return _missing_xyz(names) or _coordinates_problem(shapes)
 
-    ``shapes`` maps the coordinate columns present to their shape per point.
-    """
+
+def _coordinates_problem(shapes: Mapping[str, tuple[int, ...]]) -> str | None:
+    """Unless x, y, z and intensity (those present: their shape per point) are scalars."""
     for column, shape in shapes.items():
         if shape != ():
-            raise DataError(
-                f"field {column!r} has {shape[0]} values per point, expected 1", path=name
-            )
+            return f"field {column!r} has {shape[0]} values per point, expected 1"
+    return None
 
 
 def _finish(

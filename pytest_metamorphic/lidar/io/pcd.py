@@ -526,11 +526,12 @@ def _need(available: int, needed: int, what: str, path: Path) -> None:
 def _read_binary(
     fd: int, path: Path, header: PcdHeader, available: int, options: dict
 ) -> PointCloud:
-    step = header.point_step
+    dtype = header.dtype()
+    step = dtype.itemsize  # header.point_step, without summing it again
     size = header.points * step
     if size > available:  # (the message is only built when it is needed)
         _need(available, size, f"{header.points} points of {step} bytes", path)
-    records = np.empty(header.points, header.dtype())
+    records = np.empty(header.points, dtype)
     read = _read_into(fd, records.view(np.uint8))
     if read != size:  # the file shrank since fstat()
         raise DataError(f"expected {header.points} points, read {read // step}", path=path)
