@@ -125,18 +125,19 @@ def cloud_from_records(
 ) -> PointCloud:
     """:func:`cloud_from_columns` for a 1-D structured array (one record per point).
 
-    The cloud keeps the records in memory of its own: extra fields are views of them,
-    and so are the points when the records are exactly x, y, z, intensity float32.
-    Otherwise, when x, y, z are consecutive little-endian float32 (PCL's PointXYZ(I),
-    Velodyne and Ouster drivers, this library's writers), they are taken with one 16-byte
-    copy per record.
+    When x, y, z are consecutive little-endian float32 (PCL's PointXYZ(I), Velodyne and
+    Ouster drivers, this library's writers), they are taken with one 16-byte copy per
+    record. Records in memory of the cloud's own (``owned``, or compacted here) are not
+    copied again: extra fields are views of them, and so are the points when the records
+    are exactly x, y, z, intensity float32. Records in a buffer others hold (a message)
+    are copied field by field, so the cloud never aliases it.
 
     Parameters
     ----------
     records : (n,) structured ndarray
     owned : bool
       ``records`` is memory the reader allocated for this cloud alone (a payload read
-      into a fresh array). If not (a message buffer), the records are first copied.
+      into a fresh array).
     name, organised, nonfinite, zeros, frame_id, timestamp
       As for :func:`cloud_from_columns`.
     """
@@ -153,17 +154,12 @@ def cloud_from_records(
             opaque = np.dtype((np.void, records.dtype.itemsize))
             records = records.view(opaque).take(np.flatnonzero(keep)).view(records.dtype)
             owned = True
-    if not owned:
-        # One block copy (memcpy, into aligned memory) instead of a strided copy per field
-        # out of a buffer that is often misaligned (a PointCloud2's data starts wherever
-        # its header ends): a 9-field Ouster scan decodes ~2x faster.
-        records = np.ascontiguousarray(records).view(np.uint8).copy().view(records.dtype)
-    points = _points_of_records(records)
+    points = _points_of_records(records, owned)
     names = records.dtype.names or ()
     if points is None:
         points = _points_of_columns({key: records[key] for key in COLUMNS if key in names})
     fields = {key: records[key] for key in names if key not in COLUMNS}
-    return _finish(points, fields, name, nonfinite, frame_id, timestamp, dropped_zero, owned=True)
+    return _finish(points, fields, name, nonfinite, frame_id, timestamp, dropped_zero, owned=owned)
 
 
 @functools.lru_cache(maxsize=64)
@@ -208,9 +204,9 @@ def _finish(
 def _field(value: np.ndarray, owned: bool) -> np.ndarray:
     """An extra field in native byte order.
 
-    A view of memory the reader ``owned`` (its own copy of the records) is kept, as is an
-    array owning contiguous memory (a fresh compaction); a view of anything else (a
-    decompressed payload) is copied, since it would keep that whole buffer alive.
+    A view of records the reader ``owned`` is kept, as is an array owning contiguous
+    memory (a fresh compaction); a view of anything else (a message, a decompressed
+    payload) is copied: others may hold that buffer, and the view would keep it alive.
     """
     native = value.dtype.newbyteorder("=")
     if value.dtype == native and (owned or (value.base is None and value.flags.c_contiguous)):
@@ -238,14 +234,14 @@ def _points_of_columns(columns: Mapping[str, np.ndarray]) -> np.ndarray:
     return points
 
 
-def _points_of_records(records: np.ndarray) -> np.ndarray | None:
+def _points_of_records(records: np.ndarray, owned: bool) -> np.ndarray | None:
     """(n, 4) float32 points of records whose x, y, z are consecutive ``<f4``, else None.
 
-    Records that are exactly x, y, z, intensity float32 are viewed, not copied.
+    ``owned`` records that are exactly x, y, z, intensity float32 are viewed, not copied.
     """
     if not (_NATIVE_LITTLE and records.flags.c_contiguous and len(records)):
         return None
-    if records.dtype == _FAST_LAYOUT:
+    if owned and records.dtype == _FAST_LAYOUT:
         return records.view(np.float32).reshape(len(records), 4)
     start = _xyz_offset(records.dtype)
     if start is None:
