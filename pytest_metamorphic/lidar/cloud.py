@@ -366,6 +366,11 @@ def column_bounds(array: ArrayLike) -> np.ndarray:
     -------
     (2, k) ndarray
       Row 0 the minima, row 1 the maxima, in the array's dtype.
+
+    Raises
+    ------
+    InvalidArgument
+      ``array`` is not 2-D or has no rows.
     """
     array = np.asarray(array)
     if array.ndim != 2 or len(array) == 0:

@@ -275,11 +275,11 @@ def write_pcd(
 
 
 def _parse(head: bytes, path: Path, *, complete: bool) -> PcdHeader | None:
-    """The header at the start of ``head`` (None: it goes on past ``head``, see below).
+    """The header at the start of ``head``, as :func:`_parse_header` (which see for None).
 
     A header in the canonical form whose layout was seen before is taken from one regex
-    match; any other is parsed line by line (:func:`_parse_header`), and a canonical
-    one's layout is then remembered. Both ways give the same header.
+    match; any other is parsed line by line, and a canonical one's layout is then
+    remembered. Both ways give the same header (tests/lidar/io/test_io_pcd.py).
     """
     match = _CANONICAL.match(head)
     if match is not None:
@@ -296,8 +296,11 @@ def _parse(head: bytes, path: Path, *, complete: bool) -> PcdHeader | None:
 
 
 def _parse_canonical(match: re.Match[bytes], path: Path) -> PcdHeader | None:
-    """The header of a canonical match whose layout is known valid; None to parse it
-    line by line (unknown layout, or anything to report: that parse words the error)."""
+    """The header of a canonical match whose layout is known to be valid.
+
+    None to parse it line by line instead: an unknown layout, or anything to report (the
+    line-by-line parse words the error).
+    """
     known = _KNOWN_LAYOUTS.get((match["layout"], match["viewpoint"]))
     if known is None:
         return None
