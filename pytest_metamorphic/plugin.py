@@ -324,7 +324,7 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
 
 
 def _run_campaign_shard(item: pytest.Item) -> None:
-    from pytest_metamorphic.core.campaign import run_campaign
+    from pytest_metamorphic.core.campaign import read_campaign_log, run_campaign
     from pytest_metamorphic.reports.progress import ProgressBar
 
     campaign, shards = _campaign_of(item)
@@ -349,9 +349,28 @@ def _run_campaign_shard(item: pytest.Item) -> None:
             shards=shards,
             progress=bar.update if bar else None,
         )
+    except BaseException:
+        # Interrupted (Ctrl-C, a crash in the plugin): pytest makes no report for this
+        # test, so the sources this shard finished would be missing from the partial
+        # report. They are in the log; merge them here, where the report is printed.
+        if not hasattr(item.config, "workerinput"):
+            _merge_campaign(
+                item.config, read_campaign_log(campaign, log, shard=shard, shards=shards)
+            )
+        raise
     finally:
         if bar:
             bar.close()
+
+
+def _merge_campaign(config: pytest.Config, shard: Any) -> None:
+    """Add one shard's result to the session's merged result of its campaign."""
+    campaigns = config.stash[_CAMPAIGNS]
+    name = shard.header["campaign"]
+    if name in campaigns:
+        campaigns[name].merge(shard)
+    else:
+        campaigns[name] = shard
 
 
 def _slug(name: str) -> str:
@@ -443,13 +462,7 @@ class _SessionReporter:
         if blob is not None:
             from pytest_metamorphic.core.campaign import result_from_json
 
-            shard = result_from_json(json.loads(blob))
-            campaigns = self.config.stash[_CAMPAIGNS]
-            name = shard.header["campaign"]
-            if name in campaigns:
-                campaigns[name].merge(shard)
-            else:
-                campaigns[name] = shard
+            _merge_campaign(self.config, result_from_json(json.loads(blob)))
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if hasattr(self.config, "workerinput"):

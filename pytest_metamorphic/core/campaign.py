@@ -35,6 +35,7 @@ __all__ = [
     "SizeCounts",
     "campaign_test",
     "merge_results",
+    "read_campaign_log",
     "result_from_json",
     "run_campaign",
     "shard_indices",
@@ -422,20 +423,14 @@ def run_campaign(
     if not isinstance(campaign, Campaign):
         raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
     header = campaign.header()
-    result = CampaignResult(
-        header, {size: SizeCounts() for size in campaign.sizes}, keep_examples=keep_examples
-    )
     indices = shard_indices(campaign.sources, shard, shards)
-    done: set[int] = set()
     path = None if log is None else Path(log)
-    if path is not None and path.exists() and path.stat().st_size:
-        if resume:
-            for record in _read_log(path, header):
-                if record["source"] in indices and record["source"] not in done:
-                    done.add(record["source"])
-                    _tally(result, record)
-        else:
-            _set_aside(path)
+    if path is not None and path.exists() and path.stat().st_size and not resume:
+        _set_aside(path)
+    result = read_campaign_log(
+        campaign, path, shard=shard, shards=shards, keep_examples=keep_examples
+    )
+    done = set(result.sources_done)
     todo = [index for index in indices if index not in done]
     with _open_log(path, header) as write:
         for count, index in enumerate(todo, start=1):
@@ -445,6 +440,34 @@ def run_campaign(
             result._trim_examples()
             if progress:
                 progress(len(done) + count, len(indices))
+    result._trim_examples()
+    return result
+
+
+def read_campaign_log(
+    campaign: Campaign,
+    log: Path | str | None,
+    *,
+    shard: int = 0,
+    shards: int = 1,
+    keep_examples: int = 20,
+) -> CampaignResult:
+    """The result of the sources of one shard that ``log`` records as finished.
+
+    Nothing runs: this is what an interrupted run had done (an empty result when the log
+    is absent or empty). Raises InvalidArgument when the log belongs to another campaign.
+    """
+    header = campaign.header()
+    result = CampaignResult(
+        header, {size: SizeCounts() for size in campaign.sizes}, keep_examples=keep_examples
+    )
+    path = None if log is None else Path(log)
+    if path is None or not path.exists() or not path.stat().st_size:
+        return result
+    indices = shard_indices(campaign.sources, shard, shards)
+    for record in _read_log(path, header):
+        if record["source"] in indices and record["source"] not in result.sources_done:
+            _tally(result, record)
     result._trim_examples()
     return result
 

@@ -485,3 +485,33 @@ def test_resume_without_campaign_is_a_usage_error(pytester: pytest.Pytester) -> 
     result = pytester.runpytest("--mt-resume")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--mt-resume only makes sense with --mt-campaign*"])
+
+
+def test_ctrl_c_keeps_the_interrupted_shards_finished_sources(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Source 13 (shard 1's fourth) presses Ctrl-C on the first run.
+    interrupting = CAMPAIGN.replace(
+        "def source(rng, index):\n",
+        "def source(rng, index):\n"
+        "    import os\n"
+        "    if index == 13 and os.environ.get('MT_PRESS_CTRL_C'):\n"
+        "        raise KeyboardInterrupt\n",
+    )
+    pytester.makepyfile(test_c=interrupting)
+    monkeypatch.setenv("MT_PRESS_CTRL_C", "1")
+    result = pytester.runpytest_subprocess("--mt-campaign", "-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    # Shard 0 (10 sources) and sources 1, 5, 9 of shard 1.
+    result.stdout.fnmatch_lines(["*PARTIAL: 13 of 40 sources*"])
+    folder = pytester.path / "mt-campaigns" / "dedupe"
+    report = json.loads((folder / "report.json").read_text())
+    assert sorted(report["source_indices"]) == sorted([*range(0, 40, 4), 1, 5, 9])
+    assert not report["complete"]
+    monkeypatch.delenv("MT_PRESS_CTRL_C")
+    resumed = pytester.runpytest_subprocess(
+        "--mt-campaign", "--mt-resume", "-p", "no:cacheprovider"
+    )
+    resumed.stdout.fnmatch_lines(["*(complete)*"])
+    after_resume = json.loads((folder / "report.json").read_text())
+    assert after_resume == _campaign_report(pytester)  # a fresh, uninterrupted run
