@@ -100,9 +100,13 @@ class _Recorded:
 
 
 def noise_followup(frame: Frame, size: int, rng: np.random.Generator) -> Followup:
-    """MR1's follow-up: ``size`` points uniformly outside the frame's ROI."""
+    """MR1's follow-up: ``size`` points uniformly outside the frame's ROI.
+
+    The params hold the :class:`NoiseOutsideROI` itself (as the Hypothesis follow-ups do),
+    so a violation found here can be reduced like one found by a test.
+    """
     noise = NoiseOutsideROI.sample(frame, size, rng=rng)
-    return Followup(noise.apply(frame), params={"n": size})
+    return Followup(noise.apply(frame), params=noise.params())
 
 
 def box_label(box: Box) -> str:

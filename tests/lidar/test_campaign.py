@@ -50,6 +50,8 @@ def test_noise_followup_adds_exactly_n_points_outside_the_roi() -> None:
     assert isinstance(followup, Followup)
     added = followup.input.cloud.points[len(frame.cloud) :]
     assert len(added) == 100
+    assert followup.params["n"] == 100
+    assert np.array_equal(followup.params["noise_outside_roi"].points, added)
     assert not frame.roi.contains(added[:, :2]).any()
     assert not frame.roi.contains(added[:, :2], method="exact").any()
 
