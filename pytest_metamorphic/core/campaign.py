@@ -83,6 +83,8 @@ class Campaign:
     category: Callable[[Any], str] | None = None
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise InvalidArgument(f"name={self.name!r} must be a non-empty string")
         for argument in ("source", "followup", "system"):
             if not callable(getattr(self, argument)):
                 raise InvalidArgument(f"{argument}={getattr(self, argument)!r} must be callable")

@@ -111,6 +111,11 @@ def noise_followup(frame: Frame, size: int, rng: np.random.Generator) -> Followu
 
 def box_label(box: Box) -> str:
     """Per-class breakdown key: the obstacle's label."""
+    if not isinstance(box, Box):
+        raise InvalidArgument(
+            f"the system under test returned {box!r} in its obstacle list; an MR1 "
+            "campaign's system must return a list of Box (pytest_metamorphic.lidar.obstacles)"
+        )
     return box.label
 
 

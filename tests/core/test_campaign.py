@@ -162,6 +162,8 @@ def test_crashes_are_counted_not_fatal() -> None:
         ({"sources": 0}, "sources=0 must be an int >= 1"),
         ({"relation": "subset"}, "relation='subset' must be a Relation"),
         ({"seed": -1}, "seed=-1 must be an int >= 0"),
+        ({"name": ""}, "name='' must be a non-empty string"),
+        ({"name": None}, "name=None must be a non-empty string"),
     ],
 )
 def test_bad_campaign_arguments(kwargs: dict, message: str) -> None:

@@ -88,6 +88,14 @@ def test_kitti_frames_are_sources_and_the_reference_holds_on_them() -> None:
     assert run_campaign(faulty).sizes[1000].violations > 0
 
 
+def test_a_system_that_returns_no_boxes_is_told_so() -> None:
+    campaign = mr1_campaign(lambda frame: [(1.0, 2.0)], name="x", sources=1, sizes=(10,))
+    with pytest.raises(
+        InvalidArgument, match=r"returned \(1.0, 2.0\) .* must return a list of Box"
+    ):
+        run_campaign(campaign)
+
+
 def test_bad_campaign_arguments_are_named(tmp_path) -> None:
     with pytest.raises(InvalidArgument, match="system="):
         mr1_campaign(42, name="x")  # type: ignore[arg-type]
