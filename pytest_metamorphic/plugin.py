@@ -265,13 +265,27 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if config.stash[_REPLAYS]:
         _select_replayed(config, items)
     enabled = config.stash[_OPTIONS].campaign
+    owners: dict[str, str] = {}  # campaign name -> the test defining it
     for item in items:
         if _is_metamorphic(item):
             item.add_marker("metamorphic")
         if _campaign_of(item) is not None:
             item.add_marker("metamorphic")
+            _claim_campaign_name(owners, item)
             if not enabled:
                 item.add_marker(pytest.mark.skip(reason="campaign: run with --mt-campaign"))
+
+
+def _claim_campaign_name(owners: dict[str, str], item: pytest.Item) -> None:
+    """Campaign names key logs and reports: two campaigns must not share one."""
+    name = _campaign_of(item)[0].name
+    test = item.nodeid.split("[")[0]
+    owner = owners.setdefault(_slug(name), test)
+    if owner != test:
+        raise pytest.UsageError(
+            f"campaign name {name!r} is used by both {owner} and {test}; their logs and "
+            "reports would mix. Give each campaign its own name."
+        )
 
 
 def _select_replayed(config: pytest.Config, items: list[pytest.Item]) -> None:

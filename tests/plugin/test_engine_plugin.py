@@ -515,3 +515,17 @@ def test_ctrl_c_keeps_the_interrupted_shards_finished_sources(
     resumed.stdout.fnmatch_lines(["*(complete)*"])
     after_resume = json.loads((folder / "report.json").read_text())
     assert after_resume == _campaign_report(pytester)  # a fresh, uninterrupted run
+
+
+def test_two_campaigns_with_one_name_are_a_usage_error(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(
+        test_c=CAMPAIGN + "\ntest_again = campaign_test(test_dedupe._metamorphic_campaign[0])\n"
+    )
+    result = pytester.runpytest("--mt-campaign")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(
+        [
+            "*campaign name 'dedupe' is used by both test_c.py::test_dedupe and "
+            "test_c.py::test_again*"
+        ]
+    )
