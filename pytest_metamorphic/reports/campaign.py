@@ -23,6 +23,7 @@ __all__ = [
 ]
 
 _OUTCOMES = ("fewer", "equal", "more")
+_SHOWN_EXAMPLES = 3  # in the terminal; report.md lists every kept one
 _HEADINGS = {"fewer": "|O| > |O'|", "equal": "|O| = |O'|", "more": "|O| < |O'|"}
 
 
@@ -98,7 +99,18 @@ def format_table(result: CampaignResult) -> list[str]:
         lines.extend(_align([["n", "category", "pairs", "fewer", "same", "more"], *categories]))
     if result.source_crashes:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
+    if result.examples:
+        shown = result.examples[:_SHOWN_EXAMPLES]
+        lines.append(f"first violations ({len(shown)} of the {len(result.examples)} kept):")
+        lines.extend(f"  {_example_line(example)}" for example in shown)
     return lines
+
+
+def _example_line(example: dict) -> str:
+    return (
+        f"source {example['source']}, n={example['size']}, follow-up {example['followup']}: "
+        f"{example.get('explanation', '')}"
+    )
 
 
 def _markdown_table(header: list[str], rows: list[list[str]]) -> str:
@@ -118,11 +130,7 @@ def to_markdown(result: CampaignResult) -> str:
         )
     if result.examples:
         parts += ["", "## First violations", ""]
-        for example in result.examples:
-            parts.append(
-                f"- source {example['source']}, n={example['size']}, follow-up "
-                f"{example['followup']}: {example.get('explanation', '')}"
-            )
+        parts.extend(f"- {_example_line(example)}" for example in result.examples)
     return "\n".join(parts) + "\n"
 
 

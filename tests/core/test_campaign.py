@@ -192,6 +192,12 @@ def test_reports_table_markdown_json_and_chart(tmp_path: Path) -> None:
     assert lines[0].startswith("campaign 'toy MR1', seed 7, 20 sources x 2 sizes x 2 follow-up(s)")
     assert "|O| > |O'|" in lines[1] and "violations of subset[equality]" in lines[1]
     assert any(line.split()[:2] == ["100", "40"] for line in lines)
+    first = lines.index(f"first violations (3 of the {len(result.examples)} kept):")
+    example = result.examples[0]
+    assert lines[first + 1].startswith(
+        f"  source {example['source']}, n={example['size']}, follow-up {example['followup']}: "
+    )
+    assert len(lines) == first + 4
     write_markdown(result, tmp_path / "r.md")
     assert "| n | pairs |" in (tmp_path / "r.md").read_text()
     write_json(result, tmp_path / "r.json")
