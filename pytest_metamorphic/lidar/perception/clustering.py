@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import label
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.cloud import column_bounds
 
 __all__ = ["ClusterParams", "Clusters", "cluster_points"]
 
@@ -86,8 +87,9 @@ def cluster_points(xy: NDArray[np.floating], params: ClusterParams = ClusterPara
         empty = np.empty(0, dtype=np.intp)
         return Clusters(empty, 0, empty, np.empty(0, dtype=np.int64))
     cells = np.floor(xy[:, :2] * np.float32(1.0 / params.cell_size)).astype(np.int64)
-    cells -= cells.min(axis=0)
-    shape = cells.max(axis=0) + 1
+    low, high = column_bounds(cells)
+    cells -= low
+    shape = high - low + 1
     flat = cells[:, 0] * shape[1] + cells[:, 1]
     occupied = np.zeros(int(shape[0] * shape[1]), dtype=bool)
     occupied[flat] = True

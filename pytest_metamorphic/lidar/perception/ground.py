@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import grey_erosion
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.cloud import column_bounds
 
 __all__ = ["GroundParams", "ground_heights"]
 
@@ -94,9 +95,9 @@ def ground_heights(
     if n == 0:
         return np.empty(0, dtype=np.float32)
     cells = np.floor(xyz[:, :2] * np.float32(1.0 / params.cell_size)).astype(np.int64)
-    origin = cells.min(axis=0)
+    origin, high = column_bounds(cells)
     cells -= origin
-    shape = cells.max(axis=0) + 1
+    shape = high - origin + 1
     flat = cells[:, 0] * shape[1] + cells[:, 1]
     z = xyz[:, 2]
     usable = z >= params.floor_z
