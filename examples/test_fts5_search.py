@@ -93,12 +93,12 @@ SEARCH_RELATIONS = [
 
 
 def search_test(
-    search: Callable[[Search], list[int]], *, shrink: bool = True
+    search: Callable[[Search], list[int]], *, shrink: bool = True, derandomize: bool = False
 ) -> Callable[[], None]:
     """The metamorphic test of ``search``; a factory so the broken variant reuses it."""
     phases = [phase for phase in Phase if shrink or phase is not Phase.shrink]
 
-    @settings(max_examples=60, database=None, phases=phases)
+    @settings(max_examples=60, database=None, phases=phases, derandomize=derandomize)
     @metamorphic(source=searches, relations=SEARCH_RELATIONS, followups=2)
     def check(query: Search) -> list[int]:
         return search(query)
@@ -111,4 +111,5 @@ test_fts5_query_relations = search_test(fts5_search)
 
 def test_relations_catch_result_truncation() -> None:
     with pytest.raises(MetamorphicViolation, match="has no match in"):
-        search_test(top5_search, shrink=False)()  # catching it is the point here
+        # Derandomized: a test that asserts the bug is found must not depend on the seed.
+        search_test(top5_search, shrink=False, derandomize=True)()

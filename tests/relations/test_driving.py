@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import find
 
 from pytest_metamorphic import InvalidArgument, MetamorphicRelation
 from pytest_metamorphic.core.relations import CheckContext
@@ -15,6 +14,7 @@ from pytest_metamorphic.relations.driving import (
     impact_speed_monotone,
     speed_relation,
 )
+from tests.deterministic import find
 
 
 def pair(controller_factory, kind: str, source_kmh: float, followup_kmh: float, keep="ego_start"):

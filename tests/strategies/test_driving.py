@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from hypothesis import find, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pytest_metamorphic import Followup, InvalidArgument
@@ -14,6 +14,7 @@ from pytest_metamorphic.driving.osm import DRIVABLE_HIGHWAYS, load_roads
 from pytest_metamorphic.driving.roads import RoadGeometry
 from pytest_metamorphic.driving.scenario import KINDS, PROTOCOLS, Scenario, euro_ncap
 from pytest_metamorphic.strategies import aeb_scenarios, ego_speed_changes, straight_roads
+from tests.deterministic import find
 
 
 def test_names_are_found_through_the_strategies_package() -> None:

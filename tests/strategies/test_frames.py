@@ -6,7 +6,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, find, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from pytest_metamorphic import metamorphic, relations
@@ -14,6 +14,7 @@ from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import write_bag
+from tests.deterministic import find
 
 KITTI = "kitti_openpcdet/training"
 

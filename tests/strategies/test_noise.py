@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, find, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from pytest_metamorphic import MetamorphicRelation, metamorphic, relations
@@ -30,6 +30,7 @@ from pytest_metamorphic.strategies import (
     scene_frames,
     scenes,
 )
+from tests.deterministic import find
 
 ROAD = ROI.from_polygons([[[-120, -6], [120, -6], [120, 6], [-120, 6]]])
 FIND = settings(

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import find, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.strategies import junctions, road_corridors, rois, simple_polygons
+from tests.deterministic import find
 
 ORIGIN = np.zeros((1, 2))
 NO_DB = settings(database=None, deadline=None)
