@@ -43,10 +43,9 @@ from numpy.typing import NDArray
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher, one_to_one
-from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, cardinality, equal
-from pytest_metamorphic.core.relations import subset as subset_relation
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perturb import (
     PAPER_NOISE_SIZES,
     SEED_BITS,
@@ -54,6 +53,14 @@ from pytest_metamorphic.lidar.perturb import (
     DuplicatePoints,
     NoiseOutsideROI,
     RotateAboutSensor,
+)
+from pytest_metamorphic.lidar.scope import (
+    ObstacleScope,
+    ScopeLike,
+    as_scope,
+    judged_count,
+    judged_equal,
+    obstacles_kept,
 )
 from pytest_metamorphic.strategies import (
     duplicated_points,
@@ -65,6 +72,7 @@ __all__ = [
     "DEFAULT_NOISE",
     "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
+    "ObstacleScope",
     "RotatedObstacles",
     "duplication_invariance",
     "lidar_relations",
@@ -148,6 +156,7 @@ def mr1_subset(
     n: NoiseSize = DEFAULT_NOISE,
     max_size: int = 1000,
     matcher: Matcher | None = None,
+    scope: ScopeLike = "roi",
     name: str = "MR1: noise outside ROI => O subset of O'",
 ) -> MetamorphicRelation:
     """The paper's MR1: points added outside the ROI must not remove any obstacle.
@@ -166,9 +175,14 @@ def mr1_subset(
         When a follow-up obstacle counts as the same as a source one. Default: same
         label and bird's-eye IoU >= 0.5 (KITTI's threshold for people), so an obstacle
         that moves a little is kept but one that vanishes or changes class is not.
+    scope : "roi", "all" or ObstacleScope
+        Which source obstacles must be kept: by default those with at least half their
+        footprint inside the ROI (:mod:`pytest_metamorphic.lidar.scope`), so a detector
+        that reports the whole sweep is not blamed for noise changing obstacles off the
+        road; those changes are counted as information. ``"all"`` judges every obstacle.
     """
     _check_noise(n, max_size)
-    relation = subset_relation(matcher=matcher or IoUMatcher(0.5, same_label=True))
+    relation = obstacles_kept(matcher=matcher, scope=scope)
     return MetamorphicRelation(name, _noise(n, max_size), relation)
 
 
@@ -176,42 +190,50 @@ def mr1_cardinality(
     *,
     n: NoiseSize = DEFAULT_NOISE,
     max_size: int = 1000,
+    scope: ScopeLike = "roi",
     name: str = "MR1 (paper's check): noise outside ROI => |O| <= |O'|",
 ) -> MetamorphicRelation:
     """MR1 as Zhou & Sun checked it: the follow-up has at least as many obstacles.
 
-    ``n`` and ``max_size`` as for :func:`mr1_subset`.
+    ``n``, ``max_size`` and ``scope`` as for :func:`mr1_subset`; the judged obstacles of
+    each side are counted.
     """
     _check_noise(n, max_size)
-    return MetamorphicRelation(name, _noise(n, max_size), cardinality("<="))
+    return MetamorphicRelation(name, _noise(n, max_size), judged_count("<=", scope=scope))
 
 
 def outside_noise_invariance(
     *,
     n: NoiseSize = DEFAULT_NOISE,
     max_size: int = 1000,
+    scope: ScopeLike = "roi",
     name: str = "noise outside ROI => O == O'",
 ) -> MetamorphicRelation:
-    """Points outside the ROI change nothing at all: the outputs are equal.
+    """Points outside the ROI change nothing judged: the judged obstacles are equal.
 
-    ``n`` and ``max_size`` as for :func:`mr1_subset`.
+    ``n``, ``max_size`` and ``scope`` as for :func:`mr1_subset`. Every judged obstacle of
+    either output needs an identical one in the other (order aside); with
+    ``scope="all"`` the two outputs must be equal exactly, order included.
     """
     _check_noise(n, max_size)
-    return MetamorphicRelation(name, _noise(n, max_size), equal())
+    return MetamorphicRelation(name, _noise(n, max_size), judged_equal(scope=scope))
 
 
 def outside_removal(
     *,
     method: Literal["raster", "exact"] = "raster",
     max_size: int = 1000,
+    scope: ScopeLike = "roi",
     name: str = "outside-ROI points removed => O == O'",
 ) -> MetamorphicRelation:
-    """Removing points outside the ROI changes nothing.
+    """Removing points outside the ROI changes nothing judged.
 
     The follow-up drops either every point outside the ROI or up to ``max_size`` of them
     (a drawn subset, shrinking toward one point). ``method`` decides "outside" the way
-    the system under test does (Apollo: the rasterised bitmap).
+    the system under test does (Apollo: the rasterised bitmap). ``scope`` as for
+    :func:`outside_noise_invariance`.
     """
+    relation = judged_equal(scope=scope)
     if method not in ("raster", "exact"):
         raise InvalidArgument(f"method={method!r} must be 'raster' or 'exact'")
     _check_size(max_size, "max_size")
@@ -239,12 +261,19 @@ def outside_removal(
         )
         return st.tuples(st.booleans(), picks).map(drop)
 
-    return MetamorphicRelation(name, followup, equal())
+    return MetamorphicRelation(name, followup, relation)
 
 
 def permutation_invariance(*, name: str = "points reordered => O == O'") -> MetamorphicRelation:
-    """The order of the points in the cloud does not matter."""
-    return MetamorphicRelation(name, lambda frame: permuted_points(_frame(frame)), equal())
+    """The order of the points in the cloud does not matter, for any obstacle.
+
+    Not scoped: reordering touches every point alike, so a detector must give exactly
+    the same output everywhere (this and :func:`duplication_invariance` hold for
+    whole-scene detectors as they do for ROI-first ones).
+    """
+    return MetamorphicRelation(
+        name, lambda frame: permuted_points(_frame(frame)), judged_equal(scope="all")
+    )
 
 
 PACKET_POINTS = 384
@@ -283,7 +312,7 @@ def duplication_invariance(
             whole,
         )
 
-    return MetamorphicRelation(name, followup, equal())
+    return MetamorphicRelation(name, followup, judged_equal(scope="all"))
 
 
 class RotatedObstacles(Relation):
@@ -297,7 +326,9 @@ class RotatedObstacles(Relation):
     ``same_label``) with the centre within ``center_tolerance``, length and width each
     within ``size_tolerance`` and, for elongated boxes (length - width > 0.3 m), the heading within
     ``yaw_tolerance`` degrees modulo 180 (a box's front is not defined); and each clear
-    follow-up obstacle needs its own such source obstacle.
+    follow-up obstacle needs its own such source obstacle. With a ``scope``
+    (:mod:`pytest_metamorphic.lidar.scope`, default the ROI) only obstacles it judges are
+    clear; others are counted in ``unjudged`` details, as information.
     """
 
     def __init__(
@@ -309,7 +340,9 @@ class RotatedObstacles(Relation):
         min_points: int,
         boundary_margin: float,
         same_label: bool = True,
+        scope: ScopeLike = "roi",
     ) -> None:
+        self.scope: ObstacleScope = as_scope(scope)
         if not isinstance(same_label, bool):
             raise InvalidArgument(f"same_label={same_label!r} must be True or False")
         for label, value in (
@@ -330,7 +363,8 @@ class RotatedObstacles(Relation):
         self.same_label = same_label
         self.name = (
             f"rotated(centre<={center_tolerance:g} m, size<={size_tolerance:g} m, "
-            f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''})"
+            f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''}; "
+            f"{self.scope.describe()})"
         )
 
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
@@ -343,9 +377,20 @@ class RotatedObstacles(Relation):
         expected = [_as_box(box, "source").rotated(theta) for box in source_output]
         found = [_as_box(box, "follow-up") for box in followup_output]
         roi = getattr(context.followup_input, "roi", None)
-        missing = self._unmatched(expected, self._clear(expected, roi), found)
-        extra = self._unmatched(found, self._clear(found, roi), expected)
-        details = {"theta_deg": context.params["theta_deg"], "missing": [], "extra": []}
+        # Judged in the follow-up's frame: the turned source boxes and the found ones.
+        judged_expected = self.scope.judged(expected, context.followup_input)
+        judged_found = self.scope.judged(found, context.followup_input)
+        missing = self._unmatched(expected, self._clear(expected, roi, judged_expected), found)
+        extra = self._unmatched(found, self._clear(found, roi, judged_found), expected)
+        details = {
+            "theta_deg": context.params["theta_deg"],
+            "missing": [],
+            "extra": [],
+            "scope": self.scope.describe(),
+            "unjudged_changes": self._unjudged_changes(
+                expected, found, judged_expected, judged_found
+            ),
+        }
         if not missing and not extra:
             return Verdict(True, self.name, details=details)
         lines = [f"source {expected[i].describe()} (turned) has no match" for i in missing]
@@ -354,9 +399,25 @@ class RotatedObstacles(Relation):
         details["extra"] = [found[j].describe() for j in extra]
         return Verdict(False, self.name, "; ".join(lines[:10]), details)
 
-    def _clear(self, boxes: Sequence[Box], roi: Any) -> list[int]:
+    def _unjudged_changes(
+        self,
+        expected: list[Box],
+        found: list[Box],
+        judged_expected: NDArray[np.bool_],
+        judged_found: NDArray[np.bool_],
+    ) -> int:
+        """Unjudged obstacles, on either side, without a partner within the tolerances."""
+        outside = [i for i, judged in enumerate(judged_expected) if not judged]
+        outside2 = [j for j, judged in enumerate(judged_found) if not judged]
+        return len(self._unmatched(expected, outside, found)) + len(
+            self._unmatched(found, outside2, expected)
+        )
+
+    def _clear(self, boxes: Sequence[Box], roi: Any, judged: NDArray[np.bool_]) -> list[int]:
         chosen = []
         for index, box in enumerate(boxes):
+            if not judged[index]:
+                continue
             if box.label == "unknown" or (box.points or 0) < self.min_points:
                 continue
             if roi is not None and self.boundary_margin > 0:
@@ -409,6 +470,7 @@ def rotation_equivariance(
     yaw_tolerance: float | None = None,
     min_points: int | None = None,
     boundary_margin: float | None = None,
+    scope: ScopeLike = "roi",
     name: str | None = None,
 ) -> MetamorphicRelation:
     """Turning the cloud and the ROI about the sensor by θ turns the obstacles by θ.
@@ -433,6 +495,8 @@ def rotation_equivariance(
     center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin
         Override the defaults (metres, metres, degrees, points, metres); see
         :class:`RotatedObstacles`.
+    scope : "roi", "all" or ObstacleScope
+        Which obstacles are compared (default: those mostly inside the ROI).
     """
     if angles not in ("quarter_turns", "any"):
         raise InvalidArgument(f"angles={angles!r} must be 'quarter_turns' or 'any'")
@@ -447,6 +511,7 @@ def rotation_equivariance(
         min_points=values[3],
         boundary_margin=values[4],
         same_label=quarter,
+        scope=scope,
     )
     if quarter:
         turns = st.sampled_from((90, 180, 270))
@@ -470,18 +535,21 @@ def lidar_relations(
     *,
     noise: NoiseSize = DEFAULT_NOISE,
     rotation: Literal["quarter_turns", "any"] = "quarter_turns",
+    scope: ScopeLike = "roi",
 ) -> list[MetamorphicRelation]:
     """The whole library, for ``@metamorphic(relations=lidar_relations())``.
 
     ``noise`` is the ``n`` of the three noise relations; ``rotation`` the ``angles`` of
-    :func:`rotation_equivariance`.
+    :func:`rotation_equivariance`; ``scope`` which obstacles the ROI-related relations
+    judge (default: those mostly inside the ROI; ``"all"`` for every obstacle).
     """
+    as_scope(scope)
     return [
-        mr1_subset(n=noise),
-        mr1_cardinality(n=noise),
-        outside_noise_invariance(n=noise),
-        outside_removal(),
+        mr1_subset(n=noise, scope=scope),
+        mr1_cardinality(n=noise, scope=scope),
+        outside_noise_invariance(n=noise, scope=scope),
+        outside_removal(scope=scope),
         permutation_invariance(),
         duplication_invariance(),
-        rotation_equivariance(angles=rotation),
+        rotation_equivariance(angles=rotation, scope=scope),
     ]

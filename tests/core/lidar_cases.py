@@ -91,7 +91,8 @@ def failing_noise(
     source_output = system(frame)
     for seed in seeds:
         noise = NoiseOutsideROI.sample(frame, n, rng=np.random.default_rng(seed))
-        output = system(noise.apply(frame))
-        if not MR1.relation.check(source_output, output, CheckContext()).holds:
+        followup = noise.apply(frame)
+        output = system(followup)
+        if not MR1.relation.check(source_output, output, CheckContext(frame, followup)).holds:
             return noise, source_output, output
     raise AssertionError(f"no seed in {seeds} makes {system!r} violate MR1 with n={n}")

@@ -102,7 +102,7 @@ def test_the_reference_pipeline_has_no_hiding_set() -> None:
     noise = NoiseOutsideROI.sample(frame, 1000, rng=np.random.default_rng(0))
     source_output = system(frame)
     output = system(noise.apply(frame))
-    assert MR1.relation.check(source_output, output, CheckContext()).holds
+    assert MR1.relation.check(source_output, output, CheckContext(frame, noise.apply(frame))).holds
     with pytest.raises(Exception, match="does not violate the relation"):
         _reduce(system, frame, noise, source_output, output)
 

@@ -180,6 +180,7 @@ def test_rotated_obstacles_compares_turned_boxes() -> None:
         yaw_tolerance=2.0,
         min_points=10,
         boundary_margin=0.0,
+        scope="all",  # bare outputs: no frames, so no ROI to scope by
     )
     source = [_car(10.0, 0.0)]
     turned = [source[0].rotated(math.radians(90))]

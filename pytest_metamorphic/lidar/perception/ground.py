@@ -15,6 +15,11 @@ tolerance`` (0.4 m by default) to the ground, where the road one cell away sets 
 
 Points below ``floor_z`` (multipath reflections that appear under the road) are ignored
 when estimating the ground, so one bad return cannot lower the ground of a whole block.
+With ``rank=k > 1`` a cell's height is its k-th lowest *distinct* height instead of its
+lowest, and cells with fewer distinct heights define none: k - 1 stray returns in a cell
+(a speck of noise, a point a driver sent twice) cannot lower the ground around it. A
+whole-scene detector, which sees every point of the sweep, needs that; a detector that
+sees only ROI points (the reference) can use the plain minimum.
 
 The grid is anchored at the sensor origin (cell ``i`` covers ``[i, i + 1) * cell_size``),
 so a point's cell never depends on which other points are in the frame.
@@ -54,6 +59,9 @@ class GroundParams:
     floor_z : float
         Points lower than this (sensor frame, metres) never define the ground. KITTI's
         sensor is 1.73 m above the road, so -3.5 m leaves room for a 1.7 m dip.
+    rank : int
+        A cell's height is its ``rank``-th lowest distinct point height (1: the lowest);
+        cells with fewer distinct heights define none.
     """
 
     cell_size: float = 1.0
@@ -61,8 +69,11 @@ class GroundParams:
     max_slope: float = 0.15
     tolerance: float = 0.25
     floor_z: float = -3.5
+    rank: int = 1
 
     def __post_init__(self) -> None:
+        if isinstance(self.rank, bool) or not isinstance(self.rank, int) or self.rank < 1:
+            raise InvalidArgument(f"rank={self.rank!r} must be an int >= 1")
         if not self.cell_size > 0:
             raise InvalidArgument(f"cell_size={self.cell_size!r} must be > 0")
         if not isinstance(self.window, int) or self.window < 1 or self.window % 2 == 0:
@@ -101,8 +112,7 @@ def ground_heights(
     flat = cells[:, 0] * shape[1] + cells[:, 1]
     z = xyz[:, 2]
     usable = z >= params.floor_z
-    lowest = np.full(int(shape[0] * shape[1]), np.inf, dtype=np.float32)
-    np.minimum.at(lowest, flat[usable], z[usable])
+    lowest = _cell_heights(flat[usable], z[usable], int(shape[0] * shape[1]), params.rank)
     # Outside the grid there are no points: padding with +inf changes no minimum.
     ground = grey_erosion(
         lowest.reshape(int(shape[0]), int(shape[1])),
@@ -111,6 +121,27 @@ def ground_heights(
         cval=np.inf,
     )
     return ground.reshape(-1)[flat]
+
+
+def _cell_heights(
+    flat: NDArray[np.int64], z: NDArray[np.float32], cells: int, rank: int
+) -> NDArray[np.float32]:
+    """(cells,) float32: each cell's ``rank``-th lowest distinct z; +inf where there is none."""
+    heights = np.full(cells, np.inf, dtype=np.float32)
+    if rank == 1:
+        np.minimum.at(heights, flat, z)
+        return heights
+    order = np.lexsort((z, flat))
+    flat, z = flat[order], z[order]
+    fresh = np.ones(len(z), dtype=bool)
+    fresh[1:] = (flat[1:] != flat[:-1]) | (z[1:] != z[:-1])
+    flat, z = flat[fresh], z[fresh]
+    starts = np.ones(len(z), dtype=bool)
+    starts[1:] = flat[1:] != flat[:-1]
+    first = np.maximum.accumulate(np.where(starts, np.arange(len(z)), 0))
+    pick = np.arange(len(z)) - first == rank - 1
+    heights[flat[pick]] = z[pick]
+    return heights
 
 
 def _cone(params: GroundParams) -> NDArray[np.float32]:
