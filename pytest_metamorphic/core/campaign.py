@@ -27,7 +27,7 @@ import numpy as np
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.intervals import Rate, wilson
-from pytest_metamorphic.core.relations import CheckContext, Relation
+from pytest_metamorphic.core.relations import CheckContext, Relation, unjudged_changes
 
 __all__ = [
     "Campaign",
@@ -69,6 +69,9 @@ class Campaign:
     seed : int
     category : callable(element) -> str, optional
         Category of an output element (e.g. a box's label) for per-category breakdowns.
+    counted : callable(output, input) -> collection, optional
+        The part of an output the table counts (|O| vs |O'|, categories): for a scoped
+        relation, what it judges (e.g. obstacles inside the ROI). Default: all of it.
     """
 
     name: str
@@ -81,6 +84,7 @@ class Campaign:
     followups: int = 1
     seed: int = 0
     category: Callable[[Any], str] | None = None
+    counted: Callable[[Any, Any], Any] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -88,6 +92,10 @@ class Campaign:
         for argument in ("source", "followup", "system"):
             if not callable(getattr(self, argument)):
                 raise InvalidArgument(f"{argument}={getattr(self, argument)!r} must be callable")
+        for argument in ("category", "counted"):
+            value = getattr(self, argument)
+            if value is not None and not callable(value):
+                raise InvalidArgument(f"{argument}={value!r} must be callable or None")
         if not isinstance(self.relation, Relation):
             raise InvalidArgument(f"relation={self.relation!r} must be a Relation")
         sizes = tuple(self.sizes)
@@ -121,6 +129,9 @@ class Campaign:
         return np.random.default_rng([self.seed, index, 1 + size_index, followup])
 
 
+_TALLIES = ("pairs", "fewer", "equal", "more", "violations", "crashes", "unjudged_changes")
+
+
 @dataclass
 class SizeCounts:
     """Tallies for one perturbation size; all fields add up across shards."""
@@ -131,11 +142,12 @@ class SizeCounts:
     more: int = 0  # |O| < |O'|
     violations: int = 0
     crashes: int = 0
+    unjudged_changes: int = 0  # pairs that changed only outside the relation's scope
     # category -> [pairs where that category lost elements, kept count, gained]
     categories: dict[str, list[int]] = field(default_factory=dict)
 
     def add(self, other: SizeCounts) -> None:
-        for name in ("pairs", "fewer", "equal", "more", "violations", "crashes"):
+        for name in _TALLIES:
             setattr(self, name, getattr(self, name) + getattr(other, name))
         for category, counts in other.categories.items():
             mine = self.categories.setdefault(category, [0, 0, 0])
@@ -153,6 +165,7 @@ class SizeCounts:
             "more": self.more,
             "violations": self.violations,
             "crashes": self.crashes,
+            "unjudged_changes": self.unjudged_changes,
             "categories": {k: list(v) for k, v in sorted(self.categories.items())},
         }
 
@@ -288,6 +301,10 @@ def _count(elements: Any, category: Callable[[Any], str] | None) -> tuple[int, d
     return len(items), by_category
 
 
+def _counted(campaign: Campaign, output: Any, input_: Any) -> Any:
+    return output if campaign.counted is None else campaign.counted(output, input_)
+
+
 def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
     """All pairs of one source, as one JSON-ready record."""
     rng = campaign.source_rng(index)
@@ -300,7 +317,9 @@ def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
         record["crash"] = f"{type(error).__name__}: {error}"
         return record
     record["sut_calls"] = 1
-    n_source, source_categories = _count(source_output, campaign.category)
+    n_source, source_categories = _count(
+        _counted(campaign, source_output, source_input), campaign.category
+    )
     for size_index, size in enumerate(campaign.sizes):
         for f in range(campaign.followups):
             pair: dict[str, Any] = {"size": size, "followup": f}
@@ -316,7 +335,9 @@ def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
             except Exception as error:
                 pair["crash"] = f"{type(error).__name__}: {error}"
                 continue
-            n_followup, followup_categories = _count(followup_output, campaign.category)
+            n_followup, followup_categories = _count(
+                _counted(campaign, followup_output, followup_input), campaign.category
+            )
             verdict = campaign.relation.check(
                 source_output,
                 followup_output,
@@ -324,6 +345,9 @@ def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
             )
             pair["o"], pair["o2"] = n_source, n_followup
             pair["holds"] = verdict.holds
+            outside = unjudged_changes(verdict)
+            if outside:
+                pair["unjudged_changes"] = outside
             if source_categories or followup_categories:
                 pair["categories"] = {
                     key: [source_categories.get(key, 0), followup_categories.get(key, 0)]
@@ -354,6 +378,8 @@ def _tally(result: CampaignResult, record: dict[str, Any]) -> None:
             counts.equal += 1
         else:
             counts.more += 1
+        if pair.get("unjudged_changes"):
+            counts.unjudged_changes += 1
         if not pair["holds"]:
             counts.violations += 1
             result.examples.append({"source": record["source"], **pair})

@@ -35,7 +35,7 @@ from pytest_metamorphic.core.errors import (
     SystemUnderTestCrash,
 )
 from pytest_metamorphic.core.reduction import Reduction, reduce_followup
-from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, unjudged_changes
 from pytest_metamorphic.core.stats import (
     DEFAULT_FOLLOWUPS,
     DEFAULT_MINIMIZE_BUDGET,
@@ -273,6 +273,8 @@ class _Runner:
                         stats.sut_calls += 1
                 context = CheckContext(case.source, item.input, item.params, index)
                 verdict = mr.relation.check(source_output, output, context)
+                if stats and unjudged_changes(verdict):
+                    stats.unjudged_changes += 1
                 if not verdict.holds:
                     self._confirm_deterministic(case, source_output, fixtures, mr, stats)
                     if stats:

@@ -33,6 +33,7 @@ __all__ = [
     "predicate",
     "subset",
     "superset",
+    "unjudged_changes",
 ]
 
 
@@ -72,6 +73,24 @@ class Verdict:
 
     def __bool__(self) -> bool:
         return self.holds
+
+
+def unjudged_changes(verdict: Verdict) -> int:
+    """Changes a verdict saw outside what its relation judges (``details["unjudged_changes"]``).
+
+    Scoped relations (the LiDAR ones judge obstacles inside the ROI) report how many
+    elements outside their scope changed, as information; combined relations' parts are
+    summed. 0 for relations that judge everything.
+    """
+    details = verdict.details
+    value = details.get("unjudged_changes")
+    if isinstance(value, int):
+        return value
+    return sum(
+        part["unjudged_changes"]
+        for part in details.values()
+        if isinstance(part, Mapping) and isinstance(part.get("unjudged_changes"), int)
+    )
 
 
 class Relation:

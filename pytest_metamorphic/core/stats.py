@@ -28,6 +28,8 @@ class RelationStats:
     this relation caused; the source execution is shared by all relations of a test and
     counted once in :attr:`Recorder.source_calls`. ``minimize_calls`` is the part of
     ``sut_calls`` spent reducing violations to 1-minimal follow-ups.
+    ``unjudged_changes`` counts follow-ups whose output changed only outside what the
+    relation judges (obstacles outside the ROI scope): information, never violations.
     """
 
     sources: int = 0
@@ -37,6 +39,7 @@ class RelationStats:
     crashes: int = 0
     nondeterministic: int = 0
     minimize_calls: int = 0
+    unjudged_changes: int = 0
 
     def add(self, other: RelationStats) -> None:
         for name, value in asdict(other).items():

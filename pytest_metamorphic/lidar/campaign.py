@@ -33,7 +33,6 @@ from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
-from pytest_metamorphic.core.relations import subset
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
@@ -41,6 +40,7 @@ from pytest_metamorphic.lidar.layout import random_scene
 from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
 from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
 from pytest_metamorphic.lidar.scene import render
+from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope, obstacles_kept
 
 __all__ = ["box_label", "mr1_campaign", "noise_followup", "recorded_frames", "synthetic_frames"]
 
@@ -129,6 +129,7 @@ def mr1_campaign(
     followups: int = 1,
     seed: int = 0,
     matcher: Matcher | None = None,
+    scope: ScopeLike = "roi",
 ) -> Campaign:
     """The paper's MR1 campaign against ``system``.
 
@@ -152,7 +153,13 @@ def mr1_campaign(
     matcher : Matcher, optional
         When a follow-up obstacle is the same as a source one (default: same label and
         bird's-eye IoU >= 0.5, as :func:`~pytest_metamorphic.relations.lidar.mr1_subset`).
+    scope : "roi", "all" or ObstacleScope
+        Which obstacles are judged and counted (:mod:`pytest_metamorphic.lidar.scope`):
+        by default those with at least half their footprint inside the ROI, so a detector
+        reporting the whole sweep is not blamed for changes off the road (the table's
+        "out of scope" column counts those pairs). ``"all"``: every obstacle.
     """
+    chosen = as_scope(scope)
     if not callable(system):
         raise InvalidArgument(f"system={system!r} must be callable (Frame -> list of Box)")
     if frames is None:
@@ -177,10 +184,23 @@ def mr1_campaign(
         source=source,
         followup=noise_followup,
         system=system,
-        relation=subset(matcher=matcher or IoUMatcher()),
+        relation=obstacles_kept(matcher=matcher or IoUMatcher(), scope=chosen),
         sizes=tuple(sizes),
         sources=sources,
         followups=followups,
         seed=seed,
         category=box_label,
+        counted=None if chosen.everything else _Judged(chosen),
     )
+
+
+class _Judged:
+    """``counted`` of a scoped MR1 campaign: the obstacles the scope judges (picklable)."""
+
+    def __init__(self, scope: ObstacleScope) -> None:
+        self.scope = scope
+
+    def __call__(self, boxes: Sequence[Box], frame: Frame) -> list[Box]:
+        for box in boxes:
+            box_label(box)  # names a non-Box item the way the campaign's own check does
+        return self.scope.select(boxes, frame)

@@ -24,6 +24,10 @@ __all__ = [
 
 _OUTCOMES = ("fewer", "equal", "more")
 _SHOWN_EXAMPLES = 3  # in the terminal; report.md lists every kept one
+_SCOPE_NOTE = (
+    "out of scope: pairs whose output changed only outside what the relation judges "
+    "(obstacles outside the ROI scope); information, not violations; |O| counts judged ones"
+)
 _HEADINGS = {"fewer": "|O| > |O'|", "equal": "|O| = |O'|", "more": "|O| < |O'|"}
 
 
@@ -41,9 +45,15 @@ def _rows(result: CampaignResult) -> list[list[str]]:
                 *(_cell(getattr(counts, name), counts.pairs) for name in _OUTCOMES),
                 _cell(counts.violations, counts.pairs),
                 str(counts.crashes),
+                *([str(counts.unjudged_changes)] if _scoped(result) else []),
             ]
         )
     return rows
+
+
+def _scoped(result: CampaignResult) -> bool:
+    """Whether any pair changed outside the relation's scope (the column is shown then)."""
+    return any(counts.unjudged_changes for counts in result.sizes.values())
 
 
 def _header(result: CampaignResult) -> list[str]:
@@ -53,6 +63,7 @@ def _header(result: CampaignResult) -> list[str]:
         *(_HEADINGS[name] for name in _OUTCOMES),
         f"violations of {result.header['relation']}",
         "crashes",
+        *(["out of scope"] if _scoped(result) else []),
     ]
 
 
@@ -97,6 +108,8 @@ def format_table(result: CampaignResult) -> list[str]:
     if categories:
         lines.append("per category (pairs whose count of that category fell / stayed / rose):")
         lines.extend(_align([["n", "category", "pairs", "fewer", "same", "more"], *categories]))
+    if _scoped(result):
+        lines.append(_SCOPE_NOTE)
     if result.source_crashes:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
     if result.examples:
@@ -122,6 +135,8 @@ def _markdown_table(header: list[str], rows: list[list[str]]) -> str:
 def to_markdown(result: CampaignResult) -> str:
     parts = [f"# Campaign {result.header['campaign']}", "", _status(result), ""]
     parts.append(_markdown_table(_header(result), _rows(result)))
+    if _scoped(result):
+        parts += ["", _SCOPE_NOTE]
     categories = _category_rows(result)
     if categories:
         parts += ["", "## Per category", ""]

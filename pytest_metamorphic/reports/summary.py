@@ -20,6 +20,7 @@ __all__ = ["PROPERTY", "SessionSummary", "junit_properties"]
 
 PROPERTY = "metamorphic"
 COLUMNS = ("sources", "followups", "sut_calls", "violations", "crashes")
+SCOPE_COLUMN = "unjudged_changes"  # shown only when some relation saw such changes
 
 
 def junit_properties(recorder: Recorder) -> list[tuple[str, object]]:
@@ -29,7 +30,7 @@ def junit_properties(recorder: Recorder) -> list[tuple[str, object]]:
     properties.append(("mt.sut_calls", recorder.sut_calls))
     properties.append(("mt.source_crashes", recorder.source_crashes))
     for name, stats in recorder.relations.items():
-        for column in (*COLUMNS, "nondeterministic"):
+        for column in (*COLUMNS, "nondeterministic", SCOPE_COLUMN):
             properties.append((f"mt.{name}.{column}", getattr(stats, column)))
     return properties
 
@@ -76,28 +77,16 @@ class SessionSummary:
 
     def format_table(self) -> list[str]:
         """The terminal summary: one line per (test, relation)."""
+        rows = self.rows()
+        scoped = any(row[SCOPE_COLUMN] for row in rows)
+        columns = (*COLUMNS, SCOPE_COLUMN) if scoped else COLUMNS
         header = ("test", "relation", "sources", "follow-ups", "SUT calls", "violations", "crashes")
-        body = [
-            (
-                row["test"],
-                row["relation"],
-                *(str(row[column]) for column in COLUMNS),
-            )
-            for row in self.rows()
-        ]
+        header += ("out of scope",) if scoped else ()
+        body = [(row["test"], row["relation"], *(str(row[c]) for c in columns)) for row in rows]
         for test in self.tests.values():
             if test.source_crashes:
-                body.append(
-                    (
-                        test.nodeid,
-                        "(source)",
-                        "",
-                        "",
-                        str(test.source_calls),
-                        "",
-                        str(test.source_crashes),
-                    )
-                )
+                line = (test.nodeid, "(source)", "", "", str(test.source_calls), "")
+                body.append((*line, str(test.source_crashes), *([""] if scoped else [])))
         widths = [max(len(line[i]) for line in (header, *body)) for i in range(len(header))]
 
         def fmt(line: tuple[str, ...]) -> str:
@@ -116,6 +105,11 @@ class SessionSummary:
             f"({source_calls} on sources, each output reused by its follow-ups; "
             f"{cached} follow-up runs)"
         )
+        if scoped:
+            lines.append(
+                "out of scope: follow-ups whose output changed only outside what the relation "
+                "judges (obstacles outside the ROI scope); information, not violations"
+            )
         return lines
 
     def to_json(self) -> dict[str, Any]:
