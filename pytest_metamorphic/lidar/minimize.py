@@ -40,6 +40,7 @@ from pytest_metamorphic.lidar.perturb import (
     NoiseInsideROI,
     NoiseOutsideROI,
 )
+from pytest_metamorphic.lidar.scope import DEFAULT_SCOPE
 
 __all__ = [
     "IndexEditReduction",
@@ -122,22 +123,34 @@ def footprint_distances(xy: NDArray[np.floating], boxes: Sequence[Box]) -> NDArr
     return nearest
 
 
-def _targets(source_output: Any, followup_output: Any) -> list[Box]:
-    """The obstacles a violation is about: lost ones, else any that changed."""
+def _in_scope(boxes: list[Box], frame: Any) -> list[Box]:
+    """The boxes the default ROI scope judges; all of them when the frame has no ROI.
+
+    A scoped relation's violation is about judged obstacles, so the culprits are near
+    them, not near obstacles off the road that changed too.
+    """
+    if not boxes or getattr(frame, "roi", None) is None:
+        return boxes
+    judged = DEFAULT_SCOPE.select(boxes, frame)
+    return judged or boxes
+
+
+def _targets(source_output: Any, followup_output: Any, frame: Any = None) -> list[Box]:
+    """The obstacles a violation is about: lost ones (judged first), else any that changed."""
     source = _boxes(source_output, "source")
     followup = _boxes(followup_output, "follow-up")
     lost = lost_obstacles(source, followup)
     if lost:
-        return [source[i] for i in lost]
+        return _in_scope([source[i] for i in lost], frame)
     gone, new = changed_obstacles(source, followup)
-    return [source[i] for i in gone] + [followup[j] for j in new]
+    return _in_scope([source[i] for i in gone] + [followup[j] for j in new], frame)
 
 
 def _rank_by_distance(
-    xy: NDArray[np.floating], source_output: Any, followup_output: Any
+    xy: NDArray[np.floating], source_output: Any, followup_output: Any, frame: Any = None
 ) -> list[int]:
     try:
-        targets = _targets(source_output, followup_output)
+        targets = _targets(source_output, followup_output, frame)
     except InvalidArgument:
         targets = []  # not a box detector: keep the original order
     if not targets or len(xy) == 0:
@@ -146,15 +159,18 @@ def _rank_by_distance(
     return np.argsort(distance, kind="stable").tolist()
 
 
-def _effect_lines(xy: NDArray[np.floating], source_output: Any, followup_output: Any) -> list[str]:
-    """ "hidden: <obstacle>, <distance> from these points" for each lost obstacle."""
+def _effect_lines(
+    xy: NDArray[np.floating], source_output: Any, followup_output: Any, frame: Any = None
+) -> list[str]:
+    """ "hidden: <obstacle>, <distance> from these points" for each lost judged obstacle."""
     try:
         source = _boxes(source_output, "source")
         lost = [source[i] for i in lost_obstacles(source, _boxes(followup_output, "follow-up"))]
     except InvalidArgument:
         return []
+    judged = _in_scope(lost, frame)
     lines = []
-    for box in lost:
+    for box in judged:
         distance = footprint_distances(xy, [box]) if len(xy) else np.empty(0)
         if len(distance) == 0:
             where = ""
@@ -162,7 +178,11 @@ def _effect_lines(xy: NDArray[np.floating], source_output: Any, followup_output:
             where = f", {distance[0]:.1f} m from this point"
         else:
             where = f", {distance.min():.1f} to {distance.max():.1f} m from these points"
-        lines.append(f"hidden: {box.describe()}{where}")
+        edge = DEFAULT_SCOPE.where(box, frame) if frame is not None else ""
+        lines.append(f"hidden: {box.describe()}{f' ({edge})' if edge else ''}{where}")
+    others = len(lost) - len(judged)
+    if judged is not lost and others:
+        lines.append(f"also changed, outside the ROI scope (not judged): {others} obstacle(s)")
     return lines
 
 
@@ -188,6 +208,7 @@ class InjectedPointsReduction:
 
     def __init__(self, perturbation: NoiseOutsideROI | NoiseInsideROI) -> None:
         self.perturbation = perturbation
+        self._source: Frame | None = None
 
     @property
     def points(self) -> NDArray[np.float32]:
@@ -202,17 +223,22 @@ class InjectedPointsReduction:
 
     def restrict(self, indices: Sequence[int]) -> InjectedPointsReduction:
         chosen = np.asarray(list(indices), dtype=np.intp)
-        return InjectedPointsReduction(type(self.perturbation)(self.points[chosen]))
+        reduced = InjectedPointsReduction(type(self.perturbation)(self.points[chosen]))
+        reduced._source = self._source
+        return reduced
 
     def apply(self, source: Frame) -> Frame:
+        self._source = source
         return self.perturbation.apply(source)
 
     def params(self) -> dict[str, Any]:
         return self.perturbation.params()
 
     def ranking(self, source: Any, source_output: Any, followup_output: Any) -> list[int]:
-        """Nearest to a lost (or changed) obstacle first."""
-        return _rank_by_distance(self.points, source_output, followup_output)
+        """Nearest to a lost (or changed) obstacle first, judged ones preferred."""
+        if isinstance(source, Frame):
+            self._source = source
+        return _rank_by_distance(self.points, source_output, followup_output, source)
 
     def rankings(self, source: Any, source_output: Any, followup_output: Any) -> list[list[int]]:
         """By distance to the lost obstacle, then (fallback pass) highest first."""
@@ -223,7 +249,7 @@ class InjectedPointsReduction:
 
     def describe_effect(self, source_output: Any, followup_output: Any) -> list[str]:
         """One line per obstacle the follow-up lost, with its distance to the points."""
-        return _effect_lines(self.points, source_output, followup_output)
+        return _effect_lines(self.points, source_output, followup_output, self._source)
 
     def describe_elements(self, limit: int = 10) -> list[str]:
         lines = [_point_line(*map(float, row)) for row in self.points[:limit]]
@@ -274,7 +300,7 @@ class IndexEditReduction:
             return list(range(len(self)))
         self._source = source
         xy = source.cloud.points[np.minimum(self.indices, len(source.cloud) - 1), :2]
-        return _rank_by_distance(xy, source_output, followup_output)
+        return _rank_by_distance(xy, source_output, followup_output, source)
 
     def rankings(self, source: Any, source_output: Any, followup_output: Any) -> list[list[int]]:
         """By distance to the lost obstacle, then (fallback pass) highest first."""
@@ -289,7 +315,8 @@ class IndexEditReduction:
         if self._source is None:
             return _effect_lines(np.empty((0, 2)), source_output, followup_output)
         rows = self.indices[self.indices < len(self._source.cloud)]
-        return _effect_lines(self._source.cloud.points[rows, :2], source_output, followup_output)
+        xy = self._source.cloud.points[rows, :2]
+        return _effect_lines(xy, source_output, followup_output, self._source)
 
     def describe_elements(self, limit: int = 10) -> list[str]:
         verb = "dropped" if isinstance(self.perturbation, DropPoints) else "repeated"

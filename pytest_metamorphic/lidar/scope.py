@@ -9,19 +9,21 @@ whole sweep, and noise outside the ROI legitimately changes the obstacles *outsi
 
 An :class:`ObstacleScope` says which obstacles are judged:
 
-* ``"roi"`` (the default): an obstacle is judged when at least ``min_overlap`` (default
-  0.5) of its bird's-eye footprint lies inside the ROI's exact polygons. The fraction is
-  measured on an 8 x 8 grid of sample points over the footprint (steps of 1/64).
-  **Why a footprint fraction**: a box's centre can sit just inside the ROI while most of
-  the object is off the road, and an ROI-first detector's boxes (built from ROI points
-  only) overhang the polygon by a few centimetres, so "entirely inside" would drop real
-  on-road obstacles from the test. **Straddling obstacles**: one with half or more of its
-  footprint inside is judged. A whole-scene detector may merge such an obstacle with
-  noise points just outside the ROI, and then it changes or is lost: off-road noise
-  changed an on-road obstacle, which is exactly what MR1 exists to catch, so it is
-  reported as a violation, with the obstacle's distance to the ROI's edge. Obstacles
-  mostly outside (overlap below ``min_overlap``) are not judged. Raise ``min_overlap``
-  to 1.0 to judge only obstacles wholly inside the ROI.
+* ``"roi"`` (the default): an obstacle is judged when its bird's-eye footprint lies
+  inside the ROI's exact polygons: at least ``min_overlap`` of it (default 1.0, all of
+  it), measured on an 8 x 8 grid of sample points over the footprint (steps of 1/64).
+  **Why the footprint, not the centre**: a box's centre can sit just inside the ROI
+  while most of the object is off the road. **Straddling obstacles** (partly inside) are
+  *boundary* obstacles, not judged: a detector that sees the whole sweep builds them
+  from points on both sides, so off-road points legitimately join or leave them (a
+  parked car on the kerb absorbs a noise point beside it). Their changes are counted
+  with the other unjudged ones. A judged obstacle, wholly inside, that merges with noise
+  just outside the ROI has been changed by off-road noise, which is exactly what MR1
+  exists to catch: that is reported as a violation, with the obstacle's distance to the
+  ROI's edge. Pieces of a boundary obstacle that end up wholly inside in the follow-up
+  (its off-road part removed) are boundary changes too, not new obstacles.
+  ``min_overlap=0.5`` also judges obstacles mostly inside: right for ROI-first stacks,
+  whose boxes of edge objects are cut at the ROI and overhang it by centimetres.
 * ``"all"``: every obstacle is judged (for stacks that filter by ROI first, where any
   change is a fault, and the behaviour before scopes existed).
 
@@ -55,7 +57,7 @@ from pytest_metamorphic.core.relations import (
     equal,
     subset,
 )
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher, bev_iou
 
 __all__ = [
     "DEFAULT_SCOPE",
@@ -108,14 +110,14 @@ class ObstacleScope:
     Parameters
     ----------
     region : {"roi", "all"}
-        ``"roi"``: obstacles mostly inside the input frame's ROI; ``"all"``: every one.
+        ``"roi"``: obstacles inside the input frame's ROI; ``"all"``: every one.
     min_overlap : float
         In (0, 1]: the share of an obstacle's footprint that must lie inside the ROI for
         it to be judged (``region="roi"`` only).
     """
 
     region: Literal["roi", "all"] = "roi"
-    min_overlap: float = 0.5
+    min_overlap: float = 1.0
 
     def __post_init__(self) -> None:
         if self.region not in ("roi", "all"):
@@ -132,9 +134,11 @@ class ObstacleScope:
         return self.region == "all"
 
     def describe(self) -> str:
-        """Short name for relation names and reports, e.g. ``in ROI (>= 50% footprint)``."""
+        """Short name for relation names and reports, e.g. ``wholly in ROI``."""
         if self.everything:
             return "all obstacles"
+        if self.min_overlap == 1.0:
+            return "wholly in ROI"
         return f"in ROI (>= {self.min_overlap:.0%} footprint)"
 
     def roi(self, frame: Any) -> Any:
@@ -202,6 +206,13 @@ def _as_boxes(value: Any, which: str) -> list[Box]:
     return boxes
 
 
+def _pieces_of(boxes: list[Box], boundary: list[Box]) -> NDArray[np.bool_]:
+    """(len(boxes),) bool: which boxes overlap one of the ``boundary`` (unjudged) boxes."""
+    if not boxes or not boundary:
+        return np.zeros(len(boxes), dtype=bool)
+    return (bev_iou(boxes, boundary) > 0).any(axis=1)
+
+
 def _is_box_list(value: Any) -> bool:
     return isinstance(value, (list, tuple)) and all(isinstance(item, Box) for item in value)
 
@@ -257,6 +268,8 @@ class _Scoped(Relation):
             "judged_source": int(source_judged.sum()),
             "judged_followup": int(followup_judged.sum()),
             "unjudged_changes": len(gone) + len(new),
+            "unjudged_source": [int(i) for i in np.flatnonzero(~source_judged)],
+            "unjudged_followup": [int(j) for j in np.flatnonzero(~followup_judged)],
             "unjudged_lost": [outside[i].describe() for i in gone[:_SHOWN]],
             "unjudged_gained": [outside2[j].describe() for j in new[:_SHOWN]],
         }
@@ -361,6 +374,13 @@ class _Equal(_Scoped):
         new, _ = _twins([followup[j] for j in np.flatnonzero(followup_judged)], source)
         lost = [int(np.flatnonzero(judged)[i]) for i in gone]
         gained = [int(np.flatnonzero(followup_judged)[j]) for j in new]
+        pieces = _pieces_of(
+            [followup[j] for j in gained], [source[i] for i in np.flatnonzero(~judged)]
+        )
+        if pieces.any():
+            details["unjudged_changes"] += int(pieces.sum())
+            details["boundary_pieces"] = [followup[j].describe() for j in np.array(gained)[pieces]]
+            gained = [j for j, piece in zip(gained, pieces, strict=True) if not piece]
         details.update(changed_source=lost, changed_followup=gained)
         if not lost and not gained:
             return Verdict(True, self.name, self._note(details).strip(), details)

@@ -268,19 +268,29 @@ def _boxes_or_none(value: Any) -> list[Any] | None:
 
 
 def _hidden(record: Any) -> list[Any]:
-    """What the violation lost: obstacles for box outputs, else unmatched elements."""
+    """What the violation lost: the relation's unmatched elements, else lost obstacles."""
+    details = record.minimal_verdict.details
+    unmatched = details.get("unmatched") if isinstance(details, Mapping) else None
+    if isinstance(unmatched, list) and record.minimal_verdict.relation.startswith("subset"):
+        source = record.source_output
+        return [source[i] for i in unmatched if isinstance(i, int) and i < len(source)]
     source_boxes = _boxes_or_none(record.source_output)
     followup_boxes = _boxes_or_none(record.minimal_output)
     if source_boxes is not None and followup_boxes is not None:
         from pytest_metamorphic.lidar.minimize import lost_obstacles
 
         return [source_boxes[i] for i in lost_obstacles(source_boxes, followup_boxes)]
-    details = record.minimal_verdict.details
-    unmatched = details.get("unmatched") if isinstance(details, Mapping) else None
-    if isinstance(unmatched, list) and record.minimal_verdict.relation.startswith("subset"):
-        source = record.source_output
-        return [source[i] for i in unmatched if isinstance(i, int) and i < len(source)]
     return []
+
+
+def _unjudged(record: Any) -> list[Any]:
+    """Source obstacles outside the relation's scope (drawn as not judged)."""
+    details = record.minimal_verdict.details
+    indices = details.get("unjudged_source") if isinstance(details, Mapping) else None
+    source = record.source_output
+    if not isinstance(indices, list):
+        return []
+    return [source[i] for i in indices if isinstance(i, int) and i < len(source)]
 
 
 def _minimization_json(record: Any) -> dict[str, Any] | None:
@@ -385,6 +395,8 @@ def _fill(
                 source_boxes=source_boxes,
                 followup_boxes=followup_boxes,
                 hidden=hidden,
+                unjudged=_unjudged(record),
+                scope=str(record.minimal_verdict.details.get("scope", "")),
                 injected=_injected_points(record.followup.params),
                 minimal=minimal_points,
                 title=_picture_title(record),

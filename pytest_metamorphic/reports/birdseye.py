@@ -33,6 +33,7 @@ COLORS = {
     "source_box": "#1f5fbf",
     "followup_box": "#e07b00",
     "hidden": "#e00000",
+    "unjudged": "#9a9a9a",
     "hidden_points": "#6b0000",
 }
 _SIZE = (16.0, 8.5)  # inches
@@ -94,6 +95,7 @@ def _layers(
     followup_boxes: Sequence[Any],
     hidden: Sequence[Any],
     hidden_points: NDArray[np.float64],
+    unjudged: Sequence[Any],
     scale: float,
 ) -> None:
     from matplotlib.patches import Polygon
@@ -128,6 +130,10 @@ def _layers(
             zorder=3,
             label=f"injected points ({len(injected)})",
         )
+    _draw_boxes(
+        ax, unjudged, facecolor=COLORS["unjudged"], alpha=0.35, hatch="///", edgecolor="none",
+        zorder=4,
+    )  # fmt: skip
     _draw_boxes(ax, hidden, facecolor=COLORS["hidden"], alpha=0.55, edgecolor="none", zorder=4)
     _draw_boxes(ax, hidden, facecolor="none", edgecolor=COLORS["hidden"], linewidth=3.0, zorder=6)
     _draw_boxes(
@@ -213,6 +219,8 @@ def draw_birdseye(
     source_boxes: Sequence[Any],
     followup_boxes: Sequence[Any],
     hidden: Sequence[Any] = (),
+    unjudged: Sequence[Any] = (),
+    scope: str = "",
     injected: Any = None,
     minimal: Any = None,
     title: str = "",
@@ -229,6 +237,11 @@ def draw_birdseye(
         O and O'.
     hidden : sequence of Box
         Source obstacles the follow-up lost; filled red and framed by the close-up.
+    unjudged : sequence of Box
+        Source obstacles outside the relation's scope (e.g. mostly outside the ROI):
+        hatched grey, so the judged region is visible.
+    scope : str
+        The relation's scope in words, for the legend (e.g. ``in ROI (>= 50% footprint)``).
     injected : (n, >=2) array_like, optional
         All injected points of the follow-up as drawn (before reduction).
     minimal : (k, >=2) array_like, optional
@@ -270,6 +283,7 @@ def draw_birdseye(
         "followup_boxes": list(followup_boxes),
         "hidden": hidden,
         "hidden_points": hidden_points,
+        "unjudged": list(unjudged),
     }
     _layers(overview, scale=1.0, **layers)
     _layers(zoom, scale=8.0, **layers)
@@ -287,7 +301,11 @@ def draw_birdseye(
         ax.grid(True, linewidth=0.3, alpha=0.5)
     _annotate(zoom, hidden, minimal_xy)
     handles = [
-        Patch(facecolor=COLORS["roi"], edgecolor=COLORS["roi_edge"], label="ROI"),
+        Patch(
+            facecolor=COLORS["roi"],
+            edgecolor=COLORS["roi_edge"],
+            label=f"ROI (judged: obstacles {scope})" if scope else "ROI",
+        ),
         Line2D(
             [], [], color=COLORS["source_box"], label=f"O: source obstacles ({len(source_boxes)})"
         ),
@@ -299,6 +317,12 @@ def draw_birdseye(
             label=f"O': follow-up obstacles ({len(followup_boxes)})",
         ),
         Patch(facecolor=COLORS["hidden"], alpha=0.55, label=f"hidden ({len(hidden)})"),
+        Patch(
+            facecolor=COLORS["unjudged"],
+            alpha=0.35,
+            hatch="///",
+            label=f"not judged: outside the scope ({len(list(unjudged))})",
+        ),
         Line2D(
             [],
             [],

@@ -165,7 +165,8 @@ def test_engine_reports_k_points_the_hidden_obstacle_and_calls() -> None:
         record.source_output[i] for i in lost_obstacles(record.source_output, record.minimal_output)
     ]
     assert hidden and f"({hidden[0].describe()}) of the source has no match" in message
-    assert f"  hidden: {hidden[0].describe()}, " in message and " m from th" in message
+    assert f"  hidden: {hidden[0].describe()} (" in message and " m from th" in message
+    assert "inside the ROI's edge)" in message
 
 
 def test_ranking_puts_points_near_the_lost_obstacle_first() -> None:
@@ -222,7 +223,7 @@ def test_lidar_perturbations_are_reducible_lazily() -> None:
     ("name", "relation", "index", "key"),
     [
         ("raw_point_count", duplication_invariance(), 1, "duplicate_points"),
-        ("roi_off_by_one", outside_removal(), 3, "drop_points"),
+        ("roi_off_by_one", outside_removal(scope="all"), 3, "drop_points"),
     ],
 )
 def test_engine_reduces_repeated_and_removed_points(name, relation, index, key) -> None:

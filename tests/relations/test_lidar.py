@@ -115,7 +115,9 @@ def test_outside_noise_catches_the_use_full_cloud_fault() -> None:
     frame = kitti_frame(0)
     noise = NoiseOutsideROI.sample(frame, 1000, rng=np.random.default_rng(7))
     followup = noise.apply(frame)
-    equal_relation = lidar_relations()[2]
+    # The fault changes obstacles cut by the ROI's edge; the reference and its mutants filter
+    # by ROI first, so every obstacle they report is judged (scope="all").
+    equal_relation = lidar_relations(scope="all")[2]
     assert _check(equal_relation, frame, followup, noise.params(), SUT)
     assert not _check(equal_relation, frame, followup, noise.params(), mutant("full_cloud_ground"))
 
@@ -125,7 +127,7 @@ def test_outside_removal_catches_the_off_by_one_roi() -> None:
     frame = kitti_frame(3)
     outside = ~frame.roi.contains(frame.cloud.points)
     followup = frame.with_cloud(frame.cloud[~outside])
-    relation = outside_removal()
+    relation = outside_removal(scope="all")  # ROI-first: every point outside must not matter
     assert _check(relation, frame, followup, {}, SUT)
     assert not _check(relation, frame, followup, {}, mutant("roi_off_by_one"))
 
