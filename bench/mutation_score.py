@@ -16,6 +16,13 @@ the reference pipeline is not rotation-equivariant at arbitrary angles on clutte
 sweeps (see ``rotation_equivariance``). A relation that the reference pipeline violates
 would be unsound; its kills would not count (none does).
 
+Relations run with their default scope: obstacles wholly inside the ROI are judged
+(:mod:`pytest_metamorphic.lidar.scope`). The whole-scene variant
+(:class:`~pytest_metamorphic.lidar.perception.whole_scene.WholeScenePerception`, the
+reference without its ROI filter) is a second correct system: every relation it
+violates is a *false alarm* (target 0). It runs every relation but rotation by any
+angle, which it is not expected to satisfy (see ``rotation_equivariance``).
+
     python bench/mutation_score.py [--max-examples N] [--mutants a,b,...]
 """
 
@@ -44,6 +51,7 @@ from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.obstacles import Box  # noqa: E402
 from pytest_metamorphic.lidar.perception import ReferencePerception  # noqa: E402
 from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant  # noqa: E402
+from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception  # noqa: E402
 from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
 from pytest_metamorphic.lidar.scene import (  # noqa: E402
     BackgroundObject,
@@ -162,13 +170,17 @@ def main() -> None:
     suite.append((rotation_equivariance(angles="any"), synthetic))
     short = [f"R{i + 1}" for i in range(len(suite))]
 
-    systems = {"reference": ReferencePerception(), **{name: mutant(name) for name in names}}
+    correct = {"reference": ReferencePerception(), "whole_scene": WholeScenePerception()}
+    systems = {**correct, **{name: mutant(name) for name in names}}
     results: dict[str, list[tuple[str, str]]] = {}
     started = time.perf_counter()
     for label, system in systems.items():
         began = time.perf_counter()
         results[label] = [
-            run_relation(system, relation, source, args.max_examples) for relation, source in suite
+            ("n/a", "")
+            if label == "whole_scene" and index == len(suite) - 1
+            else run_relation(system, relation, source, args.max_examples)
+            for index, (relation, source) in enumerate(suite)
         ]
         marks = " ".join(
             f"{code}:{status}" for code, (status, _) in zip(short, results[label], strict=True)
@@ -184,14 +196,21 @@ def main() -> None:
     killed_count = 0
     for label in systems:
         row = results[label]
-        cells = [{"ok": ".", "killed": "K", "error": "E"}[status] for status, _ in row]
+        cells = [{"ok": ".", "killed": "K", "error": "E", "n/a": "-"}[status] for status, _ in row]
         kills = [i for i, (status, _) in enumerate(row) if status == "killed" and i not in unsound]
-        if label != "reference" and kills:
+        if label not in correct and kills:
             killed_count += 1
-        verdict = "" if label == "reference" else ("yes" if kills else "NO")
+        if label in correct:
+            verdict = f"{sum(status in ('killed', 'error') for status, _ in row)} false alarm(s)"
+        else:
+            verdict = "yes" if kills else "NO"
         print(f"{label:<26}" + "".join(f"{c:>4}" for c in cells) + f"  {verdict}")
     if unsound:
         print(f"\nthe reference violates {sorted(short[i] for i in unsound)}: not counted")
+    false_alarms = sum(status in ("killed", "error") for status, _ in results["whole_scene"])
+    for code, (status, text) in zip(short, results["whole_scene"], strict=True):
+        if status in ("killed", "error"):
+            print(f"\n  FALSE ALARM whole_scene x {code}:\n      " + text[:1500])
     print("\nMinimal failing examples (shrunk by Hypothesis):")
     for label in names:
         for code, (status, text) in zip(short, results[label], strict=True):
@@ -209,7 +228,8 @@ def main() -> None:
     print(f"\nmutation score {killed_count}/{total} = {score:.2f} in {elapsed:.0f} s")
     print(
         f"RESULT mutation_score={score:.4f} mutants={total} killed={killed_count} "
-        f"relations={len(suite)} reference_violations={len(unsound)} seconds={elapsed:.0f}"
+        f"relations={len(suite)} reference_violations={len(unsound)} "
+        f"whole_scene_false_alarms={false_alarms} seconds={elapsed:.0f}"
     )
 
 
