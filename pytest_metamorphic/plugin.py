@@ -54,6 +54,7 @@ class Options:
     artifacts: Path | None = DEFAULT_ARTIFACTS
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
     replay: tuple[Path, ...] = ()
+    timeout: float | None = None
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -126,6 +127,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         help="re-run a saved violation (an artifact folder) against the current system: "
         "runs only its test, fails while the violation persists; repeatable",
     )
+    group.addoption(
+        "--mt-timeout",
+        default=None,
+        metavar="SECONDS",
+        help="time limit of one call of the system under test, in metamorphic tests and "
+        "campaigns; a call past it is a crash, not a violation (ini: mt_timeout; default none)",
+    )
+    parser.addini("mt_timeout", "seconds one call of the system under test may take", default=None)
     parser.addini("mt_artifacts", "where violation artifacts are saved", default=None)
     parser.addini("mt_minimize_budget", "SUT calls allowed per reduction", default=None)
     parser.addini("mt_followups", "follow-ups per source and relation", default=None)
@@ -180,7 +189,24 @@ def _options(config: pytest.Config) -> Options:
         artifacts=_artifacts_option(config),
         minimize_budget=_budget_option(config),
         replay=tuple(_replay_option(config)),
+        timeout=_timeout_option(config),
     )
+
+
+def _timeout_option(config: pytest.Config) -> float | None:
+    raw = config.getoption("mt_timeout")
+    source = "--mt-timeout"
+    if raw is None:
+        raw, source = config.getini("mt_timeout"), "ini mt_timeout"
+    if raw in (None, ""):
+        return None
+    try:
+        seconds = float(raw)
+    except (TypeError, ValueError):
+        raise pytest.UsageError(f"{source}={raw!r} must be a number of seconds") from None
+    if not (seconds > 0 and seconds != float("inf")):
+        raise pytest.UsageError(f"{source}={raw!r} must be a positive number of seconds")
+    return seconds
 
 
 def _artifacts_option(config: pytest.Config) -> Path | None:
@@ -362,6 +388,7 @@ def _run_campaign_shard(item: pytest.Item) -> None:
             shard=shard,
             shards=shards,
             progress=bar.update if bar else None,
+            timeout=options.timeout,
         )
     except BaseException:
         # Interrupted (Ctrl-C, a crash in the plugin): pytest makes no report for this
@@ -404,6 +431,7 @@ def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
         followups=options.followups,
         check_determinism=options.check_determinism,
         minimize_budget=options.minimize_budget,
+        timeout=options.timeout,
         nodeid=item.nodeid,
     )
     if options.artifacts is not None:

@@ -28,6 +28,7 @@ from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.intervals import Rate, wilson
 from pytest_metamorphic.core.relations import CheckContext, Relation, unjudged_changes
+from pytest_metamorphic.core.timeout import call_with_timeout, check_timeout
 
 __all__ = [
     "Campaign",
@@ -305,13 +306,17 @@ def _counted(campaign: Campaign, output: Any, input_: Any) -> Any:
     return output if campaign.counted is None else campaign.counted(output, input_)
 
 
-def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
+def _run_source(campaign: Campaign, index: int, timeout: float | None = None) -> dict[str, Any]:
     """All pairs of one source, as one JSON-ready record."""
     rng = campaign.source_rng(index)
     record: dict[str, Any] = {"source": index, "pairs": [], "sut_calls": 0}
+
+    def system(value: Any, what: str) -> Any:
+        return call_with_timeout(campaign.system, value, seconds=timeout, what=what)
+
     try:
         source_input = campaign.source(rng, index)
-        source_output = campaign.system(source_input)
+        source_output = system(source_input, f"source {index}")
     except Exception as error:
         record["sut_calls"] = 1
         record["crash"] = f"{type(error).__name__}: {error}"
@@ -331,7 +336,9 @@ def _run_source(campaign: Campaign, index: int) -> dict[str, Any]:
                 )
                 followup_input = getattr(followup, "input", followup)
                 params = getattr(followup, "params", {})
-                followup_output = campaign.system(followup_input)
+                followup_output = system(
+                    followup_input, f"source {index}, size {size}, follow-up {f}"
+                )
             except Exception as error:
                 pair["crash"] = f"{type(error).__name__}: {error}"
                 continue
@@ -431,6 +438,7 @@ def run_campaign(
     shards: int = 1,
     keep_examples: int = 20,
     progress: Callable[[int, int], None] | None = None,
+    timeout: float | None = None,
 ) -> CampaignResult:
     """Run (a shard of) a campaign and return its aggregated result.
 
@@ -447,7 +455,11 @@ def run_campaign(
     keep_examples : int
         How many violating pairs to keep in the result for reports.
     progress : callable(done, total), optional
+    timeout : float, optional
+        Seconds one call of the system may take; a call past it is recorded as a crash
+        of that pair (or source), ``SystemTimeout: ...``, and the campaign goes on.
     """
+    timeout = check_timeout(timeout)
     if not isinstance(campaign, Campaign):
         raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
     header = campaign.header()
@@ -462,7 +474,7 @@ def run_campaign(
     todo = [index for index in indices if index not in done]
     with _open_log(path, header) as write:
         for count, index in enumerate(todo, start=1):
-            record = _run_source(campaign, index)
+            record = _run_source(campaign, index, timeout)
             write(record)
             _tally(result, record)
             result._trim_examples()

@@ -32,6 +32,7 @@ from pytest_metamorphic.core.errors import (
     InvalidArgument,
     MetamorphicViolation,
     NondeterministicSystemError,
+    SystemTimeout,
     SystemUnderTestCrash,
 )
 from pytest_metamorphic.core.reduction import Reduction, reduce_followup
@@ -42,6 +43,7 @@ from pytest_metamorphic.core.stats import (
     Recorder,
     current_recorder,
 )
+from pytest_metamorphic.core.timeout import call_with_timeout, check_timeout
 
 __all__ = [
     "Followup",
@@ -246,10 +248,19 @@ class _Runner:
         fn: Callable[..., Any],
         mrs: tuple[MetamorphicRelation, ...],
         check_determinism: bool | None,
+        timeout: float | None = None,
     ) -> None:
         self.fn = fn
         self.mrs = mrs
         self.check_determinism = check_determinism
+        self.timeout = timeout
+
+    def _limit(self) -> float | None:
+        """The per-call time limit: the decorator's, else ``--mt-timeout``'s, else none."""
+        if self.timeout is not None:
+            return self.timeout
+        recorder = current_recorder()
+        return recorder.timeout if recorder else None
 
     def __call__(self, case: MetamorphicCase, fixtures: dict[str, Any]) -> None:
         __tracebackhide__ = True  # failures should show the user's frames, not the engine's
@@ -379,7 +390,7 @@ class _Runner:
     ) -> Any:
         __tracebackhide__ = True
         try:
-            return self.fn(value, **fixtures)
+            return call_with_timeout(self.fn, value, seconds=self._limit(), what=what, **fixtures)
         except HypothesisException:
             raise  # assume(), reject(): Hypothesis control flow, not a crash
         except Exception as error:
@@ -389,8 +400,9 @@ class _Runner:
                     recorder.source_crashes += 1
                 else:
                     recorder.relation(relation).crashes += 1
+            verb = "timed out" if isinstance(error, SystemTimeout) else "crashed"
             raise SystemUnderTestCrash(
-                f"the system under test crashed on {what}: {type(error).__name__}: {error}",
+                f"the system under test {verb} on {what}: {type(error).__name__}: {error}",
                 stage=stage,
                 relation=relation,
             ) from error
@@ -556,6 +568,7 @@ def metamorphic(
     relations: Sequence[MetamorphicRelation] | None = None,
     followups: int | None = None,
     check_determinism: bool | None = None,
+    timeout: float | None = None,
 ) -> Callable[[Callable[..., Any]], Callable[..., None]]:
     """Turn a function that runs the system under test into a metamorphic Hypothesis test.
 
@@ -575,6 +588,12 @@ def metamorphic(
         Before reporting a violation, re-run the system on the source and raise
         :class:`NondeterministicSystemError` if the output changed. On by default;
         ``--mt-no-determinism-check`` switches the default off.
+    timeout : float, optional
+        Seconds one call of the system may take (default: ``--mt-timeout``, else no
+        limit). A call that takes longer is reported as a crash of that call
+        (:class:`~pytest_metamorphic.core.errors.SystemTimeout` chained), never as a
+        violation, and Hypothesis saves the case for replay as for any failure. An
+        in-process call cannot be stopped: it is left running in a background thread.
 
     The decorated function takes the input as its first parameter (more parameters are
     pytest fixtures) and returns the system's output. Stack ``@settings(...)`` on top as
@@ -586,6 +605,7 @@ def metamorphic(
     count = _validate_followups(followups)
     if check_determinism is not None and not isinstance(check_determinism, bool):
         raise InvalidArgument(f"check_determinism={check_determinism!r} must be a bool")
+    limit = check_timeout(timeout)
 
     def decorate(fn: Callable[..., Any]) -> Callable[..., None]:
         if not callable(fn):
@@ -600,7 +620,7 @@ def metamorphic(
                 f"{fn.__qualname__} is async; @metamorphic needs a plain function"
             )
         _, fixtures = _input_parameter(fn)
-        runner = _Runner(fn, mrs, check_determinism)
+        runner = _Runner(fn, mrs, check_determinism, limit)
 
         @functools.wraps(fn)
         def test(**kwargs: Any) -> None:

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 __all__ = [
     "DataError",
+    "ExternalSystemError",
     "InvalidArgument",
     "MetamorphicError",
     "MetamorphicViolation",
     "NondeterministicSystemError",
+    "SystemTimeout",
     "SystemUnderTestCrash",
 ]
 
@@ -70,4 +72,24 @@ class NondeterministicSystemError(MetamorphicError):
     """Running the system under test twice on the same source gave different outputs.
 
     A relation violation would be meaningless then, so the engine reports this instead.
+    """
+
+
+class SystemTimeout(MetamorphicError, TimeoutError):
+    """One call of the system under test ran past its time limit.
+
+    The engine and campaigns report it as a crash of that call (never as a violation).
+    ``seconds`` is the limit that was exceeded.
+    """
+
+    def __init__(self, message: str, *, seconds: float) -> None:
+        self.seconds = seconds
+        super().__init__(message)
+
+
+class ExternalSystemError(MetamorphicError):
+    """A system under test running in another process died, failed or wrote garbage.
+
+    The message names the command, its exit status and the end of what it wrote to
+    stderr, or the output file that could not be read.
     """

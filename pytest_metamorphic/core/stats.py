@@ -58,6 +58,7 @@ class Recorder:
     followups: int = DEFAULT_FOLLOWUPS
     check_determinism: bool = True
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
+    timeout: float | None = None
     nodeid: str = ""
     on_violation: Callable[[Any, bool], str | None] | None = field(default=None, repr=False)
     source_calls: int = 0

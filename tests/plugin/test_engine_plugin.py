@@ -529,3 +529,39 @@ def test_two_campaigns_with_one_name_are_a_usage_error(pytester: pytest.Pytester
             "test_c.py::test_again*"
         ]
     )
+
+
+def test_mt_timeout_turns_a_hanging_system_into_a_crash(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+import time
+
+@settings(database=None, max_examples=3)
+@metamorphic(source=st.integers(1, 9), followup=lambda x: st.just(-x),
+             relation=relations.equal(), followups=1)
+def test_hangs(x):
+    if x < 0:
+        time.sleep(3)
+    return abs(x)
+""",
+    )
+    result = pytester.runpytest("--mt-timeout", "0.3", "-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*SystemTimeout: follow-up 0 of relation 'equal' did not return within 0.3 s*",
+            "*SystemUnderTestCrash: the system under test timed out on follow-up 0 of relation*",
+        ]
+    )
+    assert "MetamorphicViolation" not in result.stdout.str()
+    pytester.makeini("[pytest]\nmt_timeout = 0.3\n")
+    pytester.runpytest("-p", "no:cacheprovider").assert_outcomes(failed=1)
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "soon", "inf"])
+def test_bad_mt_timeout_is_a_usage_error(pytester: pytest.Pytester, value: str) -> None:
+    pytester.makepyfile(test_x="def test_x():\n    pass\n")
+    result = pytester.runpytest(f"--mt-timeout={value}")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--mt-timeout*seconds*"])

@@ -1,0 +1,95 @@
+"""Per-call time limits: a system that hangs is a crash of that call, never a violation."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from hypothesis import Phase, settings
+from hypothesis import strategies as st
+
+from pytest_metamorphic import metamorphic, relations
+from pytest_metamorphic.core.campaign import Campaign, run_campaign
+from pytest_metamorphic.core.errors import InvalidArgument, SystemTimeout, SystemUnderTestCrash
+from pytest_metamorphic.core.stats import Recorder, recording
+from pytest_metamorphic.core.timeout import call_with_timeout
+
+PINNED = settings(max_examples=5, database=None, derandomize=True, phases=[Phase.generate])
+
+
+def sleepy(x: int) -> int:
+    """Hangs (for 3 s) on negative inputs, answers at once otherwise."""
+    if x < 0:
+        time.sleep(3.0)
+    return abs(x)
+
+
+def test_call_with_timeout_returns_raises_and_stops_waiting() -> None:
+    assert call_with_timeout(sleepy, 4, seconds=1.0) == 4
+    with pytest.raises(ZeroDivisionError):
+        call_with_timeout(lambda: 1 / 0, seconds=1.0)
+    began = time.perf_counter()
+    with pytest.raises(SystemTimeout, match=r"sleepy call did not return within 0.2 s") as info:
+        call_with_timeout(sleepy, -1, seconds=0.2, what="sleepy call")
+    assert time.perf_counter() - began < 1.5
+    assert info.value.seconds == 0.2 and isinstance(info.value, TimeoutError)
+    assert call_with_timeout(sleepy, -1, seconds=None) == 1 if False else True
+
+
+def test_a_hanging_follow_up_is_a_crash_of_that_call() -> None:
+    @PINNED
+    @metamorphic(
+        source=st.integers(1, 100),
+        followup=lambda x: st.just(-x),
+        relation=relations.equal(),
+        followups=1,
+        timeout=0.3,
+    )
+    def test_abs(x: int) -> int:
+        return sleepy(x)
+
+    recorder = Recorder()
+    began = time.perf_counter()
+    with recording(recorder), pytest.raises(SystemUnderTestCrash) as info:
+        test_abs()
+    assert time.perf_counter() - began < 10
+    assert "timed out on follow-up 0 of relation 'equal'" in str(info.value)
+    assert isinstance(info.value.__cause__, SystemTimeout)
+    assert info.value.stage == "followup"
+    stats = recorder.relation("equal")
+    assert stats.crashes >= 1 and stats.violations == 0
+
+
+def test_the_recorder_limit_applies_when_the_decorator_sets_none() -> None:
+    @PINNED
+    @metamorphic(source=st.just(-5), followup=lambda x: st.just(x), relation=relations.equal())
+    def test_abs(x: int) -> int:
+        return sleepy(x)
+
+    with (
+        recording(Recorder(timeout=0.2)),
+        pytest.raises(SystemUnderTestCrash, match="timed out on the source"),
+    ):
+        test_abs()
+
+
+def test_campaigns_record_a_timeout_and_go_on() -> None:
+    campaign = Campaign(
+        name="sleepy",
+        source=lambda rng, index: index,
+        followup=lambda value, size, rng: -value if value == 2 else value + size,
+        system=lambda value: [sleepy(value)],
+        relation=relations.predicate(lambda a, b, context: True, name="anything"),
+        sizes=(1,),
+        sources=4,
+    )
+    result = run_campaign(campaign, timeout=0.3)
+    assert result.complete and result.sizes[1].crashes == 1 and result.sizes[1].pairs == 4
+    with pytest.raises(InvalidArgument, match="timeout="):
+        run_campaign(campaign, timeout=0)
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, float("nan"), "5", True])
+def test_bad_timeouts_are_named(bad: object) -> None:
+    with pytest.raises(InvalidArgument, match="timeout="):
+        metamorphic(source=st.just(1), followup=st.just, relation=relations.equal(), timeout=bad)  # type: ignore[arg-type]
