@@ -43,6 +43,9 @@ __all__ = [
     "read_kitti_calibration",
     "read_kitti_labels",
     "read_kitti_objects",
+    "sensor_calibration",
+    "write_kitti_calibration",
+    "write_kitti_labels",
 ]
 
 KITTI_LABELS: dict[str, Label] = {
@@ -247,3 +250,66 @@ def _to_lidar(
     heading = to_velo[:3, :3] @ np.array([math.cos(rotation_y), 0.0, -math.sin(rotation_y)])
     yaw = math.atan2(heading[1], heading[0])
     return Box(tuple(centre[:3]), (length, width, height), yaw)  # type: ignore[arg-type]
+
+
+def sensor_calibration() -> KittiCalibration:
+    """A calibration whose camera sits at the LiDAR, looking along +x.
+
+    For exporting frames that have no calibration of their own (rendered scenes, other
+    sensors) as a KITTI-style dataset: ``R0_rect`` is the identity and
+    ``Tr_velo_to_cam`` only swaps axes (camera x right = -y, y down = -z, z forward = x),
+    so labels written and read with it are the LiDAR boxes exactly.
+    """
+    axes = np.array([[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    projection = np.array([[721.5377, 0.0, 609.5593, 0.0], [0.0, 721.5377, 172.854, 0.0],
+                           [0.0, 0.0, 1.0, 0.0]])  # fmt: skip
+    return KittiCalibration(P2=projection, R0_rect=np.eye(3), Tr_velo_to_cam=axes)
+
+
+def write_kitti_calibration(path: str | os.PathLike[str], calibration: KittiCalibration) -> None:
+    """Write ``calibration`` as a KITTI object ``calib/*.txt`` file (P0-P3, R0_rect, Tr)."""
+    path = Path(path)
+    lines = [f"P{i}: " + _row(calibration.P2) for i in range(4)]
+    lines.append("R0_rect: " + _row(calibration.R0_rect))
+    lines.append("Tr_velo_to_cam: " + _row(calibration.Tr_velo_to_cam))
+    lines.append("Tr_imu_to_velo: " + _row(np.eye(4)[:3]))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _row(matrix: NDArray[np.float64]) -> str:
+    return " ".join(f"{value:.12e}" for value in np.asarray(matrix, dtype=np.float64).ravel())
+
+
+_KITTI_TYPES = {"car": "Car", "pedestrian": "Pedestrian", "cyclist": "Cyclist", "unknown": "Misc"}
+
+
+def write_kitti_labels(
+    path: str | os.PathLike[str],
+    boxes: list[Box],
+    calibration: KittiCalibration,
+    *,
+    precision: int = 6,
+) -> None:
+    """Write LiDAR-frame boxes as KITTI label lines (a 16th value when a box has a score).
+
+    The inverse of :func:`read_kitti_labels` through ``calibration``: locations are the
+    bottom centres in the rectified camera frame. KITTI's own files keep 2 decimals;
+    ``precision`` (default 6) keeps round trips within a micrometre. The 2-D box and
+    alpha are written as 0 (they need the image, and no LiDAR evaluation reads them).
+    """
+    velo_to_rect = np.linalg.inv(calibration.rect_to_velo())
+    lines = []
+    for box in boxes:
+        length, width, height = box.size
+        # The inverse of _to_lidar: the centre to the camera, then down camera y by h / 2.
+        x, y, z = (velo_to_rect @ np.array([*box.center, 1.0]))[:3]
+        y += height / 2.0
+        heading = velo_to_rect[:3, :3] @ np.array([math.cos(box.yaw), math.sin(box.yaw), 0.0])
+        rotation_y = math.atan2(-heading[2], heading[0])
+        values = [0.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, height, width, length, x, y, z, rotation_y]
+        text = " ".join(
+            str(v) if isinstance(v, int) else f"{float(v):.{precision}f}" for v in values
+        )
+        score = "" if box.score is None else f" {box.score:.{precision}f}"
+        lines.append(f"{_KITTI_TYPES[box.label]} {text}{score}")
+    Path(path).write_text("\n".join(lines) + ("\n" if lines else ""), encoding="utf-8")
