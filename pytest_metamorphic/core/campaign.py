@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,8 +32,10 @@ from pytest_metamorphic.core.timeout import call_with_timeout, check_timeout
 
 __all__ = [
     "Campaign",
+    "CampaignInput",
     "CampaignResult",
     "SizeCounts",
+    "campaign_inputs",
     "campaign_test",
     "merge_results",
     "read_campaign_log",
@@ -306,6 +308,47 @@ def _counted(campaign: Campaign, output: Any, input_: Any) -> Any:
     return output if campaign.counted is None else campaign.counted(output, input_)
 
 
+def _followup(
+    campaign: Campaign, source_input: Any, index: int, size_index: int, f: int
+) -> tuple[Any, Mapping[str, Any]]:
+    """Follow-up ``f`` of source ``index`` at ``sizes[size_index]``: (input, params)."""
+    size = campaign.sizes[size_index]
+    followup = campaign.followup(source_input, size, campaign.followup_rng(index, size_index, f))
+    return getattr(followup, "input", followup), getattr(followup, "params", {})
+
+
+@dataclass(frozen=True)
+class CampaignInput:
+    """One input a campaign runs its system on (see :func:`campaign_inputs`).
+
+    ``size`` and ``followup`` are None for the source input itself.
+    """
+
+    source: int
+    size: int | None
+    followup: int | None
+    input: Any
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+def campaign_inputs(
+    campaign: Campaign, sources: Iterable[int] | None = None
+) -> Iterator[CampaignInput]:
+    """Every input of the campaign (each source, then its follow-ups), as a run draws them.
+
+    The same seeds as :func:`run_campaign`, so the inputs are exactly those a run gives
+    its system: the basis of offline evaluation (export the inputs, run a detector over
+    them anywhere, evaluate its predictions).
+    """
+    for index in range(campaign.sources) if sources is None else sources:
+        source_input = campaign.source(campaign.source_rng(index), index)
+        yield CampaignInput(index, None, None, source_input)
+        for size_index, size in enumerate(campaign.sizes):
+            for f in range(campaign.followups):
+                value, params = _followup(campaign, source_input, index, size_index, f)
+                yield CampaignInput(index, size, f, value, params)
+
+
 def _run_source(campaign: Campaign, index: int, timeout: float | None = None) -> dict[str, Any]:
     """All pairs of one source, as one JSON-ready record."""
     rng = campaign.source_rng(index)
@@ -331,11 +374,7 @@ def _run_source(campaign: Campaign, index: int, timeout: float | None = None) ->
             record["pairs"].append(pair)
             record["sut_calls"] += 1
             try:
-                followup = campaign.followup(
-                    source_input, size, campaign.followup_rng(index, size_index, f)
-                )
-                followup_input = getattr(followup, "input", followup)
-                params = getattr(followup, "params", {})
+                followup_input, params = _followup(campaign, source_input, index, size_index, f)
                 followup_output = system(
                     followup_input, f"source {index}, size {size}, follow-up {f}"
                 )
