@@ -23,7 +23,7 @@ reference without its ROI filter) is a second correct system: every relation it
 violates is a *false alarm* (target 0). It runs every relation but rotation by any
 angle, which it is not expected to satisfy (see ``rotation_equivariance``).
 
-    python bench/mutation_score.py [--max-examples N] [--mutants a,b,...]
+    python bench/mutation_score.py [--max-examples N] [--mutants a,b,...] [--scope roi|all]
 """
 
 from __future__ import annotations
@@ -156,6 +156,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-examples", type=int, default=100)
     parser.add_argument("--mutants", default=",".join(MUTANTS))
+    parser.add_argument(
+        "--scope", default="roi", choices=("roi", "all"), help="the relations' obstacle scope"
+    )
     args = parser.parse_args()
     names = [name for name in args.mutants.split(",") if name]
     # Falsifying examples hold whole frames; their reprs are long, and we print them cut.
@@ -166,8 +169,8 @@ def main() -> None:
     synthetic = st.sampled_from(rendered_scenes())
     real = frames(str(KITTI), roi=kitti_label_region(), labels=False, cache_size=6)
     both = st.one_of(real, synthetic)
-    suite = [(relation, both) for relation in lidar_relations()]
-    suite.append((rotation_equivariance(angles="any"), synthetic))
+    suite = [(relation, both) for relation in lidar_relations(scope=args.scope)]
+    suite.append((rotation_equivariance(angles="any", scope=args.scope), synthetic))
     short = [f"R{i + 1}" for i in range(len(suite))]
 
     correct = {"reference": ReferencePerception(), "whole_scene": WholeScenePerception()}
