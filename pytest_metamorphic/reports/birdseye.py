@@ -57,6 +57,8 @@ class Picture:
         Each minimal point in the overview panel.
     sensor : (float, float)
         The sensor (origin) in the overview panel.
+    unjudged : list of (float, float)
+        Centre of each obstacle outside the relation's scope in the overview panel.
     """
 
     path: Path
@@ -64,6 +66,7 @@ class Picture:
     hidden: list[tuple[float, float]] = field(default_factory=list)
     minimal: list[tuple[float, float]] = field(default_factory=list)
     sensor: tuple[float, float] = (0.0, 0.0)
+    unjudged: list[tuple[float, float]] = field(default_factory=list)
 
 
 def _xy(points: Any, name: str) -> NDArray[np.float64]:
@@ -355,6 +358,7 @@ def draw_birdseye(
         hidden=[_pixel(zoom, box.center[:2], height) for box in hidden],
         minimal=[_pixel(overview, xy, height) for xy in minimal_xy],
         sensor=_pixel(overview, (0.0, 0.0), height),
+        unjudged=[_pixel(overview, box.center[:2], height) for box in layers["unjudged"]],
     )
     figure.savefig(path, dpi=_DPI, format="png")
     return picture

@@ -100,3 +100,21 @@ def test_close_up_frames_the_hidden_obstacle(tmp_path: Path) -> None:
 def test_bad_point_arrays_are_named(tmp_path: Path) -> None:
     with pytest.raises(InvalidArgument, match="minimal must have shape"):
         draw(tmp_path, minimal=np.zeros(3))
+
+
+def test_obstacles_outside_the_scope_are_hatched_grey_and_named_in_the_legend(
+    tmp_path: Path,
+) -> None:
+    outside = Box((20.0, 20.0, -0.9), (6.0, 4.0, 1.5), 0.0, "unknown")
+    picture, image = draw(
+        tmp_path, source_boxes=[CAR, WALKER, outside], unjudged=[outside], scope="wholly in ROI"
+    )
+    (pixel,) = picture.unjudged
+    around = [
+        rgb(image, (pixel[0] + dx, pixel[1] + dy)) for dx in range(-4, 5) for dy in (-3, 0, 3)
+    ]
+    grey = [color for color in around if np.ptp(color) < 0.08 and color.max() < 0.93]
+    assert len(grey) >= 10  # the hatched grey fill, not the white background
+    bare, plain = draw(tmp_path, source_boxes=[CAR, WALKER, outside])
+    assert not bare.unjudged
+    assert np.abs(plain.astype(float) - image.astype(float)).sum() > 0
