@@ -13,7 +13,9 @@ from matplotlib.path import Path as MplPath
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.roi import ROI, _points_in_polygon, _scan_intervals, validate_polygon
+from pytest_metamorphic.lidar.roi import ROI, validate_polygon
+from pytest_metamorphic.lidar.roi.polygon import _points_in_polygon
+from pytest_metamorphic.lidar.roi.raster import _scan_intervals
 
 SQUARE = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
 # A concave "U" with a notch, exercising several intervals per scan line.

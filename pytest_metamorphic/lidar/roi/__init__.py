@@ -1,0 +1,12 @@
+"""Regions of interest: HD-map road and junction polygons, exact and Apollo-rasterised.
+
+One concept per module: :mod:`.region` (the :class:`ROI` type and its containment
+methods), :mod:`.polygon` (validation and vectorised polygon geometry), :mod:`.raster`
+(Apollo's scan conversion into a 0.25 m bitmap) and :mod:`.roads` (corridors and
+junctions built from road centre lines).
+"""
+
+from pytest_metamorphic.lidar.roi.polygon import validate_polygon
+from pytest_metamorphic.lidar.roi.region import ROI, ContainmentMethod
+
+__all__ = ["ROI", "ContainmentMethod", "validate_polygon"]

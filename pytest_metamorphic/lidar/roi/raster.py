@@ -1,0 +1,89 @@
+"""Apollo's scan conversion of ROI polygons into a bird's-eye bitmap (``polygon_mask.h``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import maximum_filter
+
+
+class _Grid:
+    """The bitmap geometry: square cells over ``[-extent, extent)`` in x and y."""
+
+    def __init__(self, extent: float, cell_size: float) -> None:
+        self.extent = extent
+        self.cell_size = cell_size
+        # Apollo: dims = int((max - min) / cell) + 1 (one spare column and row).
+        self.size = int(2.0 * extent / cell_size) + 1
+
+    def index(self, values: NDArray[np.float64]) -> NDArray[np.intp]:
+        return np.floor((values + self.extent) / self.cell_size).astype(np.intp)
+
+    def exists(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
+        e = self.extent
+        return (xy[:, 0] >= -e) & (xy[:, 0] < e) & (xy[:, 1] >= -e) & (xy[:, 1] < e)
+
+    def centres(self, index: NDArray[np.integer]) -> NDArray[np.float64]:
+        return (np.asarray(index, dtype=np.float64) + 0.5) * self.cell_size - self.extent
+
+
+def _scan_intervals(
+    u: NDArray[np.float64],
+    v: NDArray[np.float64],
+    first_column: int,
+    count: int,
+    cell: float,
+    extent: float,
+) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
+    """Even-odd crossing intervals of one polygon on scan lines through column centres.
+
+    Scan line ``c`` (``first_column <= c < first_column + count``) is ``u = (c + 0.5) *
+    cell - extent``. Returns ``(column, low, high)``: one row per interval of ``v``.
+    """
+    u0, v0 = u, v
+    u1, v1 = np.roll(u, -1), np.roll(v, -1)
+    lo_u, hi_u = np.minimum(u0, u1), np.maximum(u0, u1)
+    # Columns whose centre c satisfies lo_u <= c < hi_u (half-open: each vertex once).
+    begin = np.ceil((lo_u + extent) / cell - 0.5).astype(np.intp)
+    end = np.ceil((hi_u + extent) / cell - 0.5).astype(np.intp)
+    begin = np.maximum(begin, first_column)
+    end = np.minimum(end, first_column + count)
+    spans = np.maximum(end - begin, 0)
+    total = int(spans.sum())
+    if total == 0:
+        empty = np.empty(0)
+        return np.empty(0, dtype=np.intp), empty, empty
+    edge = np.repeat(np.arange(len(u)), spans)
+    column = begin[edge] + (np.arange(total) - np.repeat(np.cumsum(spans) - spans, spans))
+    centre = (column + 0.5) * cell - extent
+    du = u1[edge] - u0[edge]
+    crossing = v0[edge] + (centre - u0[edge]) * (v1[edge] - v0[edge]) / du
+    order = np.lexsort((crossing, column))
+    column, crossing = column[order], crossing[order]
+    # Every scan line crosses a closed polygon an even number of times.
+    return column[0::2], crossing[0::2], crossing[1::2]
+
+
+def _fill_runs(
+    grid: NDArray[np.bool_],
+    row: NDArray[np.intp],
+    start: NDArray[np.intp],
+    stop: NDArray[np.intp],
+) -> None:
+    """Set ``grid[row, start:stop + 1]`` for every run, with a difference array."""
+    if len(row) == 0:
+        return
+    size = grid.shape[1]
+    start = np.clip(start, 0, size - 1)
+    stop = np.clip(stop, 0, size - 1)
+    diff = np.zeros((grid.shape[0], size + 1), dtype=np.int32)
+    np.add.at(diff, (row, start), 1)
+    np.add.at(diff, (row, stop + 1), -1)
+    grid |= np.cumsum(diff[:, :size], axis=1) > 0
+
+
+def _dilate(mask: NDArray[np.bool_], cells: int) -> NDArray[np.bool_]:
+    """Square (Chebyshev) dilation by ``cells`` cells; outside the grid counts as empty."""
+    if cells == 0:
+        return mask.copy()
+    return maximum_filter(mask, size=2 * cells + 1, mode="constant", cval=False)
