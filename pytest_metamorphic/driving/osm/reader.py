@@ -1,0 +1,268 @@
+"""A hardened reader for OpenStreetMap XML (``.osm`` and ``.osm.bz2``).
+
+OSM files come from anywhere, so the parser is the standard library's expat with every
+feature that lets a document reach beyond itself switched off: a DOCTYPE, an entity
+declaration (internal or external, the "billion laughs" expansion bomb) or an external
+entity reference is rejected with a :class:`~pytest_metamorphic.core.errors.DataError`
+naming the file. Decompressed input is capped (``max_bytes``) against bz2 bombs."""
+
+from __future__ import annotations
+
+import bz2
+import math
+import xml.parsers.expat
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import IO, Any
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.driving.osm.projection import LocalProjection
+
+__all__ = ["OsmData", "OsmNode", "OsmWay", "read_osm"]
+
+_CHUNK = 1 << 20
+_DEFAULT_MAX_BYTES = 512 << 20
+
+
+@dataclass(frozen=True)
+class OsmNode:
+    """An OSM node: id, WGS84 latitude/longitude in degrees, tags."""
+
+    id: int
+    lat: float
+    lon: float
+    tags: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class OsmWay:
+    """An OSM way: id, the ordered node ids it references, tags."""
+
+    id: int
+    node_ids: tuple[int, ...]
+    tags: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class OsmData:
+    """Everything :func:`read_osm` keeps from a file.
+
+    Attributes
+    ----------
+    path : str
+    nodes : mapping of node id -> OsmNode
+    ways : tuple of OsmWay, in file order
+    bounds : (minlat, minlon, maxlat, maxlon) or None
+        The file's ``<bounds>`` element, when present.
+    relation_count : int
+        Relations are counted, not kept.
+    """
+
+    path: str
+    nodes: Mapping[int, OsmNode]
+    ways: tuple[OsmWay, ...]
+    bounds: tuple[float, float, float, float] | None
+    relation_count: int
+
+    def projection(self) -> LocalProjection:
+        """The local projection about the centre of the nodes' bounding box."""
+        if not self.nodes:
+            raise DataError("has no nodes to centre a projection on", path=self.path)
+        lat = np.fromiter((n.lat for n in self.nodes.values()), float, len(self.nodes))
+        lon = np.fromiter((n.lon for n in self.nodes.values()), float, len(self.nodes))
+        return LocalProjection.about(lat, lon)
+
+
+class _Handler:
+    """expat callbacks building :class:`OsmData`; refuses anything entity-related."""
+
+    def __init__(self, path: str, parser: xml.parsers.expat.XMLParserType) -> None:
+        self.path = path
+        self.parser = parser
+        self.nodes: dict[int, OsmNode] = {}
+        self.ways: list[OsmWay] = []
+        self.bounds: tuple[float, float, float, float] | None = None
+        self.relation_count = 0
+        self.depth = 0
+        self.root_seen = False
+        # The element whose <tag>/<nd> children are being collected.
+        self.current: str | None = None
+        self.current_attrs: dict[str, str] = {}
+        self.current_tags: dict[str, str] = {}
+        self.current_refs: list[int] = []
+
+    # -- hostile constructs ------------------------------------------------------------
+    def _refuse(self, what: str) -> None:
+        raise DataError(
+            f"{what} at line {self.parser.CurrentLineNumber}: OSM XML never needs one, and "
+            "entity expansion or external entities are refused for safety",
+            path=self.path,
+        )
+
+    def doctype(self, name: str, *_: Any) -> None:
+        self._refuse(f"DOCTYPE declaration <!DOCTYPE {name}>")
+
+    def entity_decl(self, name: str, *_: Any) -> None:
+        self._refuse(f"entity declaration <!ENTITY {name}>")
+
+    def external_entity(self, *_: Any) -> int:
+        self._refuse("external entity reference")
+        return 0
+
+    # -- content -----------------------------------------------------------------------
+    def _error(self, message: str) -> DataError:
+        return DataError(f"line {self.parser.CurrentLineNumber}: {message}", path=self.path)
+
+    def _int(self, attrs: Mapping[str, str], key: str, element: str) -> int:
+        try:
+            return int(attrs[key])
+        except KeyError:
+            raise self._error(f"<{element}> has no {key!r} attribute") from None
+        except ValueError:
+            raise self._error(f"<{element}> {key}={attrs[key]!r} is not an integer") from None
+
+    def _float(self, attrs: Mapping[str, str], key: str, element: str) -> float:
+        try:
+            value = float(attrs[key])
+        except KeyError:
+            raise self._error(f"<{element}> has no {key!r} attribute") from None
+        except ValueError:
+            raise self._error(f"<{element}> {key}={attrs[key]!r} is not a number") from None
+        if not math.isfinite(value):
+            raise self._error(f"<{element}> {key}={attrs[key]!r} is not finite")
+        return value
+
+    def start(self, name: str, attrs: dict[str, str]) -> None:
+        self.depth += 1
+        if self.depth == 1:
+            if name != "osm":
+                raise self._error(f"root element is <{name}>, not <osm>: not an OSM XML file")
+            self.root_seen = True
+            return
+        if name in ("node", "way", "relation") and self.depth == 2:
+            self.current = name
+            self.current_attrs = attrs
+            self.current_tags = {}
+            self.current_refs = []
+        elif name == "tag" and self.current is not None:
+            if "k" not in attrs or "v" not in attrs:
+                raise self._error(f"<tag> in a <{self.current}> needs both k and v")
+            self.current_tags[attrs["k"]] = attrs["v"]
+        elif name == "nd" and self.current == "way":
+            self.current_refs.append(self._int(attrs, "ref", "nd"))
+        elif name == "bounds" and self.depth == 2:
+            self.bounds = tuple(  # type: ignore[assignment]
+                self._float(attrs, key, "bounds")
+                for key in ("minlat", "minlon", "maxlat", "maxlon")
+            )
+
+    def end(self, name: str) -> None:
+        if self.depth == 2 and name == self.current:
+            self._finish(name)
+            self.current = None
+        self.depth -= 1
+
+    def _finish(self, name: str) -> None:
+        attrs = self.current_attrs
+        # Deleted or invisible objects appear in editor and history files; they are not map data.
+        if attrs.get("action") == "delete" or attrs.get("visible") == "false":
+            return
+        if name == "relation":
+            self.relation_count += 1
+            return
+        element_id = self._int(attrs, "id", name)
+        tags = MappingProxyType(self.current_tags)
+        if name == "node":
+            lat = self._float(attrs, "lat", "node")
+            lon = self._float(attrs, "lon", "node")
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                raise self._error(f"node {element_id} has lat={lat}, lon={lon} out of range")
+            if element_id in self.nodes:
+                raise self._error(f"node id {element_id} appears twice")
+            self.nodes[element_id] = OsmNode(element_id, lat, lon, tags)
+        else:
+            self.ways.append(OsmWay(element_id, tuple(self.current_refs), tags))
+
+
+def _open(path: Path) -> IO[bytes]:
+    with open(path, "rb") as probe:
+        magic = probe.read(3)
+    if path.suffix == ".bz2" or magic == b"BZh":
+        return bz2.open(path, "rb")
+    return open(path, "rb")
+
+
+def _chunks(stream: IO[bytes], path: Path, max_bytes: int) -> Iterator[bytes]:
+    total = 0
+    while True:
+        try:
+            chunk = stream.read(_CHUNK)
+        except (OSError, EOFError, ValueError) as error:
+            raise DataError(f"cannot decompress: {error}", path=path) from None
+        if not chunk:
+            return
+        total += len(chunk)
+        if total > max_bytes:
+            raise DataError(
+                f"is larger than max_bytes={max_bytes} once decompressed; pass a larger "
+                "max_bytes if the file is trusted",
+                path=path,
+            )
+        yield chunk
+
+
+def read_osm(path: str | Path, *, max_bytes: int = _DEFAULT_MAX_BYTES) -> OsmData:
+    """Parse an OSM XML file (plain or bz2-compressed) with a hardened expat parser.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.osm`` or ``.osm.bz2`` (bz2 is also recognised by its magic bytes).
+    max_bytes : int
+        Refuse files larger than this once decompressed (default 512 MiB).
+
+    Raises
+    ------
+    DataError
+        The file is missing, not OSM XML, malformed, or contains a DOCTYPE, an entity
+        declaration or an external entity reference. The message names the file and line.
+    """
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
+        raise InvalidArgument(f"max_bytes={max_bytes!r} must be a positive int")
+    path = Path(path)
+    if not path.is_file():
+        raise DataError("no such file", path=path)
+    parser = xml.parsers.expat.ParserCreate()
+    handler = _Handler(str(path), parser)
+    parser.SetParamEntityParsing(xml.parsers.expat.XML_PARAM_ENTITY_PARSING_NEVER)
+    parser.StartDoctypeDeclHandler = handler.doctype
+    parser.EntityDeclHandler = handler.entity_decl
+    parser.UnparsedEntityDeclHandler = handler.entity_decl
+    parser.ExternalEntityRefHandler = handler.external_entity
+    parser.StartElementHandler = handler.start
+    parser.EndElementHandler = handler.end
+    parser.buffer_text = True
+    try:
+        with _open(path) as stream:
+            for chunk in _chunks(stream, path, max_bytes):
+                parser.Parse(chunk, False)
+            parser.Parse(b"", True)
+    except xml.parsers.expat.ExpatError as error:
+        raise DataError(
+            f"malformed XML at line {error.lineno}, column {error.offset}: "
+            f"{xml.parsers.expat.ErrorString(error.code)}",
+            path=path,
+        ) from None
+    if not handler.root_seen:
+        raise DataError("is empty: no <osm> root element", path=path)
+    return OsmData(
+        str(path),
+        MappingProxyType(handler.nodes),
+        tuple(handler.ways),
+        handler.bounds,
+        handler.relation_count,
+    )

@@ -1,0 +1,223 @@
+"""Drivable OSM ways as :class:`Road` geometries: centre lines in local metres, widths, lanes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.driving.osm.projection import LocalProjection
+from pytest_metamorphic.driving.osm.reader import (
+    _DEFAULT_MAX_BYTES,
+    OsmData,
+    OsmNode,
+    OsmWay,
+    read_osm,
+)
+from pytest_metamorphic.driving.osm.tags import _defaults, parse_lanes, parse_oneway, parse_width
+
+__all__ = ["Road", "load_roads"]
+
+
+@dataclass(frozen=True, eq=False)
+class Road:
+    """One OSM way with a ``highway`` tag, in local metres.
+
+    Attributes
+    ----------
+    way_id : int
+    name : str
+        ``name`` tag, else ``ref``, else ``""``.
+    highway : str
+        The ``highway`` class (``residential``, ``secondary``, ...).
+    centerline : (k, 2) float64
+        Vertices in local metres (x east, y north), k >= 2, in the direction of travel
+        for one-way roads (``oneway=-1`` ways are reversed).
+    width : float
+        Carriageway width in metres.
+    lanes : int
+        Number of lanes (both directions).
+    oneway : bool
+    width_source : {"width", "lanes", "default"}
+        Where ``width`` came from: the ``width`` tag, ``lanes`` x the class's lane width,
+        or the class's default lane count x lane width.
+    node_ids : tuple of int
+        The OSM nodes of ``centerline``, in the same order.
+    tags : mapping
+    projection : LocalProjection
+        The frame of ``centerline``.
+    """
+
+    way_id: int
+    name: str
+    highway: str
+    centerline: NDArray[np.float64]
+    width: float
+    lanes: int
+    oneway: bool
+    width_source: Literal["width", "lanes", "default"]
+    node_ids: tuple[int, ...]
+    tags: Mapping[str, str]
+    projection: LocalProjection
+
+    @property
+    def length(self) -> float:
+        """Length of the centreline in metres."""
+        return float(np.linalg.norm(np.diff(self.centerline, axis=0), axis=1).sum())
+
+    @property
+    def lane_width(self) -> float:
+        return self.width / self.lanes
+
+    def describe(self) -> str:
+        label = self.name or f"way {self.way_id}"
+        direction = "one-way" if self.oneway else "two-way"
+        return (
+            f"{label} ({self.highway}, {self.length:.0f} m, {self.width:.2f} m wide from "
+            f"{self.width_source}, {self.lanes} lane(s), {direction})"
+        )
+
+    def __repr__(self) -> str:
+        return f"Road(way_id={self.way_id}, {self.describe()})"
+
+
+def _highway_filter(highway: str | Iterable[str] | None) -> frozenset[str] | None:
+    if highway is None:
+        return None
+    if isinstance(highway, str):
+        return frozenset({highway})
+    try:
+        values = frozenset(highway)
+    except TypeError:
+        raise InvalidArgument(
+            f"highway={highway!r} must be None, a highway class or a collection of them"
+        ) from None
+    if not all(isinstance(value, str) for value in values):
+        raise InvalidArgument(f"highway={highway!r} must contain only strings")
+    return values
+
+
+def _resolve_projection(
+    data: OsmData, origin: LocalProjection | tuple[float, float] | None
+) -> LocalProjection:
+    if origin is None:
+        return data.projection()
+    if isinstance(origin, LocalProjection):
+        return origin
+    try:
+        lat0, lon0 = (float(v) for v in origin)
+    except (TypeError, ValueError):
+        raise InvalidArgument(
+            f"origin={origin!r} must be None, a LocalProjection or a (lat, lon) pair"
+        ) from None
+    return LocalProjection(lat0, lon0)
+
+
+def _longest_present_run(way: OsmWay, nodes: Mapping[int, OsmNode]) -> tuple[int, ...]:
+    """The longest run of consecutive node refs present in the file (extracts clip ways)."""
+    best: list[int] = []
+    run: list[int] = []
+    for node_id in way.node_ids:
+        if node_id in nodes:
+            run.append(node_id)
+            if len(run) > len(best):
+                best = list(run)
+        else:
+            run = []
+    return tuple(best)
+
+
+def _selected_ways(
+    data: OsmData, wanted: frozenset[str] | None
+) -> Iterator[tuple[OsmWay, tuple[int, ...]]]:
+    for way in data.ways:
+        highway = way.tags.get("highway")
+        if highway is None or way.tags.get("area") == "yes":
+            continue
+        if wanted is not None and highway not in wanted:
+            continue
+        node_ids = _longest_present_run(way, data.nodes)
+        # Drop repeated consecutive nodes: they make zero-length segments.
+        node_ids = tuple(n for i, n in enumerate(node_ids) if i == 0 or n != node_ids[i - 1])
+        if len(node_ids) >= 2:
+            yield way, node_ids
+
+
+def _road_width(tags: Mapping[str, str], highway: str, oneway: bool) -> tuple[float, int, str]:
+    defaults = _defaults(highway)
+    lanes_tag = parse_lanes(tags.get("lanes"))
+    lanes = lanes_tag or (defaults.oneway_lanes if oneway else defaults.lanes)
+    width_tag = parse_width(tags.get("width"))
+    if width_tag is not None:
+        return width_tag, lanes, "width"
+    source = "lanes" if lanes_tag else "default"
+    return lanes * defaults.lane_width, lanes, source
+
+
+def load_roads(
+    path: str | Path,
+    *,
+    highway: str | Iterable[str] | None = None,
+    origin: LocalProjection | tuple[float, float] | None = None,
+    max_bytes: int = _DEFAULT_MAX_BYTES,
+) -> list[Road]:
+    """Read the roads (ways with a ``highway`` tag) of an OSM file, in local metres.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.osm`` or ``.osm.bz2``.
+    highway : str or collection of str, optional
+        Keep only these ``highway`` classes, e.g. :data:`DRIVABLE_HIGHWAYS`. Default: every
+        linear way with a ``highway`` tag (``area=yes`` squares are skipped).
+    origin : LocalProjection or (lat, lon), optional
+        Projection centre; default the centre of the file's nodes.
+    max_bytes : int
+        See :func:`read_osm`.
+
+    Returns
+    -------
+    list of Road
+        In file order. Extracts clip ways at their bounding box and may reference nodes
+        the file does not contain: such a way keeps its longest run of present nodes, and
+        ways left with fewer than two nodes are skipped.
+
+    Notes
+    -----
+    Width: the ``width`` tag (see :func:`parse_width`), else ``lanes`` x the class's lane
+    width, else the class's default lane count (fewer for one-way roads) x lane width
+    (:data:`HIGHWAY_DEFAULTS`).
+    """
+    wanted = _highway_filter(highway)
+    data = read_osm(path, max_bytes=max_bytes)
+    projection = _resolve_projection(data, origin)
+    roads = []
+    for way, node_ids in _selected_ways(data, wanted):
+        oneway, reverse = parse_oneway(way.tags)
+        if reverse:
+            node_ids = node_ids[::-1]
+        lat = np.array([data.nodes[n].lat for n in node_ids])
+        lon = np.array([data.nodes[n].lon for n in node_ids])
+        highway_class = way.tags["highway"]
+        width, lanes, source = _road_width(way.tags, highway_class, oneway)
+        roads.append(
+            Road(
+                way_id=way.id,
+                name=way.tags.get("name") or way.tags.get("ref") or "",
+                highway=highway_class,
+                centerline=projection.to_local(lat, lon),
+                width=float(width),
+                lanes=int(lanes),
+                oneway=oneway,
+                width_source=source,  # type: ignore[arg-type]
+                node_ids=node_ids,
+                tags=way.tags,
+                projection=projection,
+            )
+        )
+    return roads

@@ -1,0 +1,139 @@
+"""OSM tags: drivable ``highway`` classes, ``width``, ``lanes``, ``oneway``, per-class defaults."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+__all__ = [
+    "DRIVABLE_HIGHWAYS",
+    "HIGHWAY_DEFAULTS",
+    "HighwayDefaults",
+    "parse_lanes",
+    "parse_oneway",
+    "parse_width",
+]
+
+#: ``highway=*`` values a car may drive on.
+DRIVABLE_HIGHWAYS = frozenset(
+    {
+        "motorway", "motorway_link", "trunk", "trunk_link", "primary", "primary_link",
+        "secondary", "secondary_link", "tertiary", "tertiary_link", "unclassified",
+        "residential", "living_street", "service", "road", "busway",
+    }
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class HighwayDefaults:
+    """Per-class assumptions used when a way has no ``width`` tag.
+
+    ``lane_width`` in metres; ``lanes`` for a two-way way and ``oneway_lanes`` for a one-way
+    way (OSM's ``lanes`` counts both directions, so one-way roads default to fewer lanes).
+    """
+
+    lane_width: float
+    lanes: int
+    oneway_lanes: int
+
+
+_ROAD = HighwayDefaults(3.0, 2, 1)
+_PATH = HighwayDefaults(2.0, 1, 1)
+
+#: Default lane width and lane counts per ``highway`` class (``*_link`` uses its base class).
+#: Typical European/US design values; anything unlisted uses the ``residential`` entry.
+HIGHWAY_DEFAULTS: Mapping[str, HighwayDefaults] = MappingProxyType(
+    {
+        "motorway": HighwayDefaults(3.75, 4, 2),
+        "trunk": HighwayDefaults(3.5, 4, 2),
+        "primary": HighwayDefaults(3.5, 2, 1),
+        "secondary": HighwayDefaults(3.25, 2, 1),
+        "tertiary": HighwayDefaults(3.0, 2, 1),
+        "unclassified": _ROAD,
+        "residential": _ROAD,
+        "road": _ROAD,
+        "living_street": HighwayDefaults(3.0, 1, 1),
+        "service": HighwayDefaults(3.0, 1, 1),
+        "busway": HighwayDefaults(3.5, 1, 1),
+        "track": HighwayDefaults(2.5, 1, 1),
+        "pedestrian": HighwayDefaults(3.0, 1, 1),
+        "footway": _PATH,
+        "path": _PATH,
+        "bridleway": _PATH,
+        "steps": _PATH,
+        "corridor": _PATH,
+        "cycleway": HighwayDefaults(1.5, 1, 1),
+    }
+)
+
+
+_NUMBER = r"(\d+(?:\.\d+)?|\.\d+)"
+_METRES = re.compile(rf"^{_NUMBER}\s*(m|meters?|metres?)?$")
+_FEET = re.compile(rf"^{_NUMBER}\s*(ft|feet|foot|')$")
+_FEET_INCHES = re.compile(rf"^{_NUMBER}\s*(?:'|ft)\s*{_NUMBER}\s*(?:\"|in|'')$")
+_FOOT_M = 0.3048
+_INCH_M = 0.0254
+
+
+def parse_width(value: str | None) -> float | None:
+    """A ``width=*`` tag in metres, or None when it is absent or not understood.
+
+    Handles the forms mappers use: ``5``, ``5.5``, ``5,5`` (decimal comma), ``5 m``,
+    ``5.5 metres``, ``16'``, ``16 ft``, ``12'6"``. Values outside (0, 100] m are
+    treated as mistakes (None), so the per-class default applies instead.
+    """
+    if value is None:
+        return None
+    text = value.strip().lower().lstrip("~").strip()
+    # A single comma between digits is a decimal comma ("5,5"); "5,500" is ambiguous: refuse.
+    if re.fullmatch(r"\d+,\d{1,2}(\s*\D.*)?", text):
+        text = text.replace(",", ".", 1)
+    metres: float | None = None
+    if match := _METRES.match(text):
+        metres = float(match.group(1))
+    elif match := _FEET.match(text):
+        metres = float(match.group(1)) * _FOOT_M
+    elif match := _FEET_INCHES.match(text):
+        metres = float(match.group(1)) * _FOOT_M + float(match.group(2)) * _INCH_M
+    if metres is None or not 0.0 < metres <= 100.0:
+        return None
+    return metres
+
+
+def parse_lanes(value: str | None) -> int | None:
+    """A ``lanes=*`` tag as a positive int, or None when absent or not understood."""
+    if value is None:
+        return None
+    text = value.strip()
+    if not text.isdigit():
+        return None
+    lanes = int(text)
+    return lanes if 1 <= lanes <= 20 else None
+
+
+def parse_oneway(tags: Mapping[str, str]) -> tuple[bool, bool]:
+    """``(oneway, reversed)`` from a way's tags.
+
+    ``oneway=yes/true/1`` is one-way along the node order, ``-1``/``reverse`` against it;
+    ``no/false/0`` is two-way; without a tag, motorways and roundabouts are one-way
+    (OSM's implied values) and everything else is two-way.
+    """
+    value = tags.get("oneway", "").strip().lower()
+    if value in ("yes", "true", "1", "reversible", "alternating"):
+        return True, False
+    if value in ("-1", "reverse"):
+        return True, True
+    if value in ("no", "false", "0"):
+        return False, False
+    implied = tags.get("highway") in ("motorway", "motorway_link") or tags.get("junction") in (
+        "roundabout",
+        "circular",
+    )
+    return implied, False
+
+
+def _defaults(highway: str) -> HighwayDefaults:
+    base = highway[: -len("_link")] if highway.endswith("_link") else highway
+    return HIGHWAY_DEFAULTS.get(base, HIGHWAY_DEFAULTS["residential"])
