@@ -13,12 +13,12 @@ from pytest_metamorphic.driving.kinematics import (
     BrakeCommand,
     Observation,
     Sensor,
-    _classify,
-    _corners,
     physically_avoidable,
     simulate,
     stopping_distance,
 )
+from pytest_metamorphic.driving.kinematics.geometry import _corners
+from pytest_metamorphic.driving.kinematics.simulator import _classify
 from pytest_metamorphic.driving.roads import RoadGeometry
 from pytest_metamorphic.driving.scenario import (
     CHILD,
