@@ -11,7 +11,8 @@ from hypothesis.extra import numpy as hnp
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.io import _lzf, pcd, read_pcd, read_pcd_header, write_pcd
+from pytest_metamorphic.lidar.io import _lzf, read_pcd, read_pcd_header, write_pcd
+from pytest_metamorphic.lidar.io.pcd import header as pcd
 
 VLP16 = "nebula_velodyne/vlp16/1673400472138016708.pcd"
 VLP32 = "nebula_velodyne/vlp32/1713492677464078412.pcd"
