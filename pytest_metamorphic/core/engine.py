@@ -18,16 +18,24 @@ from __future__ import annotations
 
 import functools
 import inspect
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from hypothesis import given, settings
-from hypothesis import strategies as st
 from hypothesis.errors import HypothesisException
 from hypothesis.strategies import SearchStrategy
 
-from pytest_metamorphic.core.comparison import describe_value, first_difference
+from pytest_metamorphic.core.cases import (
+    CASE_ARGUMENT,
+    Followup,
+    MetamorphicCase,
+    MetamorphicRelation,
+    _cases,
+    _resolve_relations,
+    _validate_followups,
+)
+from pytest_metamorphic.core.comparison import first_difference
 from pytest_metamorphic.core.errors import (
     InvalidArgument,
     MetamorphicViolation,
@@ -38,12 +46,17 @@ from pytest_metamorphic.core.errors import (
 from pytest_metamorphic.core.reduction import Reduction, reduce_followup
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, unjudged_changes
 from pytest_metamorphic.core.stats import (
-    DEFAULT_FOLLOWUPS,
     DEFAULT_MINIMIZE_BUDGET,
-    Recorder,
     current_recorder,
 )
 from pytest_metamorphic.core.timeout import call_with_timeout, check_timeout
+from pytest_metamorphic.core.violations import (
+    ViolationRecord,
+    _hypothesis_seed,
+    _in_final_run,
+    _save,
+    _violation_error,
+)
 
 __all__ = [
     "Followup",
@@ -52,169 +65,6 @@ __all__ = [
     "ViolationRecord",
     "metamorphic",
 ]
-
-CASE_ARGUMENT = "case"
-_MAX_FOLLOWUPS = 100
-
-
-@dataclass(frozen=True)
-class Followup:
-    """A follow-up input together with the transform parameters that made it.
-
-    Transforms may yield plain inputs; yield ``Followup(value, params={...})`` when the
-    parameters (a rotation angle, the injected points) should appear in failure messages
-    and reports.
-    """
-
-    input: Any
-    params: Mapping[str, Any] = field(default_factory=dict)
-
-    def __repr__(self) -> str:
-        params = f", params={dict(self.params)!r}" if self.params else ""
-        return f"Followup({self.input!r}{params})"
-
-
-@dataclass(frozen=True)
-class MetamorphicRelation:
-    """A named pair of an input transform and an output relation.
-
-    Parameters
-    ----------
-    name : str
-        Shown in failures and reports; unique within one test.
-    followup : callable(source_input) -> SearchStrategy
-        Draws follow-up inputs for a source input. The strategy may yield plain inputs or
-        :class:`Followup` values carrying the transform parameters.
-    relation : Relation
-        How the follow-up output must relate to the source output.
-    """
-
-    name: str
-    followup: Callable[[Any], SearchStrategy[Any]]
-    relation: Relation
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name:
-            raise InvalidArgument(f"name={self.name!r} must be a non-empty string")
-        _check_transform(self.followup, f"followup of relation {self.name!r}")
-        if not isinstance(self.relation, Relation):
-            raise InvalidArgument(
-                f"relation={self.relation!r} of {self.name!r} must be a Relation "
-                "(e.g. relations.equal()); did you forget the parentheses?"
-                if callable(self.relation)
-                else f"relation={self.relation!r} of {self.name!r} must be a Relation, "
-                "e.g. relations.equal() or relations.predicate(fn)"
-            )
-
-
-@dataclass(frozen=True)
-class MetamorphicCase:
-    """One drawn test case: a source input and its follow-ups per relation name."""
-
-    source: Any
-    followups: Mapping[str, tuple[Followup, ...]]
-
-    def __repr__(self) -> str:
-        parts = ", ".join(f"{name!r}: {list(items)!r}" for name, items in self.followups.items())
-        return f"MetamorphicCase(source={self.source!r}, followups={{{parts}}})"
-
-
-def _check_transform(followup: Any, what: str) -> None:
-    if isinstance(followup, SearchStrategy):
-        raise InvalidArgument(
-            f"{what} is a strategy; it must be a function of the source input returning a "
-            f"strategy, e.g. lambda source: {followup!r}"
-        )
-    if not callable(followup):
-        raise InvalidArgument(
-            f"{what} must be callable(source_input) -> strategy, got {followup!r}"
-        )
-    try:
-        signature = inspect.signature(followup)
-    except (TypeError, ValueError):
-        return  # builtins without signatures: trust them
-    try:
-        signature.bind(object())
-    except TypeError:
-        raise InvalidArgument(
-            f"{what} must accept exactly one argument (the source input); its signature is "
-            f"{signature}"
-        ) from None
-
-
-def _resolve_relations(
-    followup: Any, relation: Any, relations: Any
-) -> tuple[MetamorphicRelation, ...]:
-    if relations is not None:
-        if followup is not None or relation is not None:
-            raise InvalidArgument("pass either followup= and relation=, or relations=, not both")
-        if isinstance(relations, MetamorphicRelation):
-            relations = [relations]
-        if not isinstance(relations, Sequence) or not relations:
-            raise InvalidArgument(
-                f"relations={relations!r} must be a non-empty list of MetamorphicRelation"
-            )
-        for index, item in enumerate(relations):
-            if not isinstance(item, MetamorphicRelation):
-                raise InvalidArgument(
-                    f"relations[{index}] is {item!r}; wrap transform and relation in "
-                    "MetamorphicRelation(name, followup, relation)"
-                )
-        names = [item.name for item in relations]
-        duplicates = sorted({name for name in names if names.count(name) > 1})
-        if duplicates:
-            raise InvalidArgument(f"relation names must be unique, repeated: {duplicates}")
-        return tuple(relations)
-    if followup is None or relation is None:
-        raise InvalidArgument(
-            "@metamorphic needs followup= and relation= (or relations=[MetamorphicRelation...])"
-        )
-    name = getattr(relation, "name", None) if isinstance(relation, Relation) else None
-    return (MetamorphicRelation(name or "relation", followup, relation),)
-
-
-def _validate_followups(followups: Any) -> int | None:
-    if followups is None:
-        return None
-    if isinstance(followups, bool) or not isinstance(followups, int):
-        raise InvalidArgument(
-            f"followups={followups!r} must be an int between 1 and {_MAX_FOLLOWUPS}"
-        )
-    if not 1 <= followups <= _MAX_FOLLOWUPS:
-        raise InvalidArgument(f"followups={followups} must be between 1 and {_MAX_FOLLOWUPS}")
-    return followups
-
-
-def _draw_followups(
-    draw: Callable[[SearchStrategy[Any]], Any], mr: MetamorphicRelation, source: Any, count: int
-) -> tuple[Followup, ...]:
-    strategy = mr.followup(source)
-    if not isinstance(strategy, SearchStrategy):
-        raise InvalidArgument(
-            f"followup of relation {mr.name!r} returned {describe_value(strategy)}, not a "
-            "Hypothesis strategy; return e.g. st.just(value) or st.permutations(source)"
-        )
-    items = []
-    for _ in range(count):
-        value = draw(strategy)
-        items.append(value if isinstance(value, Followup) else Followup(value))
-    return tuple(items)
-
-
-def _cases(
-    source: SearchStrategy[Any], mrs: tuple[MetamorphicRelation, ...], followups: int | None
-) -> SearchStrategy[MetamorphicCase]:
-    @st.composite
-    def cases(draw: Callable[[SearchStrategy[Any]], Any]) -> MetamorphicCase:
-        # Resolved per draw so that --mt-followups applies to tests that did not fix it.
-        recorder = current_recorder()
-        count = followups or (recorder.followups if recorder else DEFAULT_FOLLOWUPS)
-        value = draw(source)
-        return MetamorphicCase(
-            value, {mr.name: _draw_followups(draw, mr, value, count) for mr in mrs}
-        )
-
-    return cases()
 
 
 def _input_parameter(fn: Callable[..., Any]) -> tuple[str, list[inspect.Parameter]]:
@@ -434,130 +284,6 @@ class _Runner:
                 f"{mr.name!r} cannot be judged. Fix the seed or the order dependence, or pass "
                 "check_determinism=False if you know what you are doing."
             )
-
-
-@dataclass(frozen=True)
-class ViolationRecord:
-    """Everything known about one violation, for the message and for artifacts.
-
-    Attributes
-    ----------
-    nodeid : str
-        The pytest node id ("" outside the plugin).
-    relation, check : str
-        The metamorphic relation's name and the output relation's name.
-    index, total : int
-        Which follow-up of how many.
-    source, followup
-        The source input and the violating follow-up as drawn (before reduction).
-    source_output, followup_output, verdict
-        The outputs and the relation's verdict on that follow-up.
-    reduction : Reduction or None
-        The 1-minimal follow-up, when the transform was reducible and this was the final run.
-    reduction_note : str
-        Why a reduction is missing although one was attempted.
-    seed : dict
-        Hypothesis' seed for the run (``{"seed": int or None, "derandomize": bool}``).
-    """
-
-    nodeid: str
-    relation: str
-    check: str
-    index: int
-    total: int
-    source: Any
-    followup: Followup
-    source_output: Any
-    followup_output: Any
-    verdict: Verdict
-    reduction: Reduction | None = None
-    reduction_note: str = ""
-    seed: Mapping[str, Any] = field(default_factory=dict)
-
-    @property
-    def minimal_followup(self) -> Followup:
-        """The reduced follow-up when there is one, else the follow-up as drawn."""
-        if self.reduction is None:
-            return self.followup
-        return Followup(self.reduction.followup_input, self.reduction.params)
-
-    @property
-    def minimal_output(self) -> Any:
-        return self.followup_output if self.reduction is None else self.reduction.output
-
-    @property
-    def minimal_verdict(self) -> Verdict:
-        return self.verdict if self.reduction is None else self.reduction.verdict
-
-
-def _in_final_run() -> bool:
-    """True in Hypothesis' last replay of a failing example, and outside Hypothesis."""
-    from hypothesis.control import current_build_context
-
-    try:
-        return bool(current_build_context().is_final)
-    except HypothesisException:  # no build context: called directly, e.g. by a replay
-        return True
-
-
-def _hypothesis_seed() -> dict[str, Any]:
-    """The seed Hypothesis used for this test run (``@seed``, generated, or derandomized)."""
-    from hypothesis.control import current_build_context
-
-    try:
-        wrapped = current_build_context().wrapped_test
-    except HypothesisException:
-        return {"seed": None, "derandomize": False}
-    # Private attributes, read defensively: Hypothesis prints the same seed on failures.
-    seed = getattr(wrapped, "_hypothesis_internal_use_seed", None)
-    if seed is None:
-        seed = getattr(wrapped, "_hypothesis_internal_use_generated_seed", None)
-    chosen = getattr(wrapped, "_hypothesis_internal_use_settings", None)
-    return {
-        "seed": seed if isinstance(seed, int) else None,
-        "derandomize": bool(getattr(chosen, "derandomize", False)),
-    }
-
-
-def _save(recorder: Recorder, record: ViolationRecord, final: bool) -> str | None:
-    if recorder.on_violation is None:
-        return None
-    return recorder.on_violation(record, final)
-
-
-def _violation_error(record: ViolationRecord, saved: str | None) -> MetamorphicViolation:
-    reduction = record.reduction
-    verdict = record.minimal_verdict
-    item = record.minimal_followup
-    lines = [
-        f"metamorphic relation {record.relation!r} violated on follow-up {record.index} of "
-        f"{record.total} (check: {verdict.relation})",
-    ]
-    if reduction is not None:
-        lines.append(f"  minimal follow-up: {reduction.summary()}")
-        lines.extend(f"    {line}" for line in reduction.element_lines())
-        lines.extend(f"  {line}" for line in reduction.effect_lines(record.source_output))
-    elif record.reduction_note:
-        lines.append(f"  {record.reduction_note}")
-    if item.params:
-        lines.append(f"  transform parameters: {_short_params(item.params)}")
-    lines.append(f"  {verdict.explanation}")
-    if reduction is not None and record.verdict.explanation != verdict.explanation:
-        lines.append(f"  with all {reduction.original_size} elements: {record.verdict.explanation}")
-    lines.append(f"  source output:    {describe_value(record.source_output)}")
-    lines.append(f"  follow-up output: {describe_value(record.minimal_output)}")
-    if saved:
-        lines.append(f"  artifacts: {saved}")
-    error = MetamorphicViolation("\n".join(lines), relation=record.relation, verdict=verdict)
-    error.followup = item
-    error.source_output = record.source_output
-    error.followup_output = record.minimal_output
-    error.record = record
-    return error
-
-
-def _short_params(params: Mapping[str, Any]) -> str:
-    return "{" + ", ".join(f"{key}={describe_value(value)}" for key, value in params.items()) + "}"
 
 
 def metamorphic(

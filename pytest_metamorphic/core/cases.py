@@ -1,0 +1,191 @@
+"""The drawn side of a metamorphic test: follow-ups, relations, cases, and their validation.
+
+A case is a source input plus, for every :class:`MetamorphicRelation`, a few follow-up
+inputs drawn from its transform; both are drawn through Hypothesis, so a failure shrinks
+the source *and* the transform parameters.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from hypothesis import strategies as st
+from hypothesis.strategies import SearchStrategy
+
+from pytest_metamorphic.core.comparison import describe_value
+from pytest_metamorphic.core.errors import (
+    InvalidArgument,
+)
+from pytest_metamorphic.core.relations import Relation
+from pytest_metamorphic.core.stats import (
+    DEFAULT_FOLLOWUPS,
+    current_recorder,
+)
+
+__all__ = ["Followup", "MetamorphicCase", "MetamorphicRelation"]
+
+CASE_ARGUMENT = "case"
+_MAX_FOLLOWUPS = 100
+
+
+@dataclass(frozen=True)
+class Followup:
+    """A follow-up input together with the transform parameters that made it.
+
+    Transforms may yield plain inputs; yield ``Followup(value, params={...})`` when the
+    parameters (a rotation angle, the injected points) should appear in failure messages
+    and reports.
+    """
+
+    input: Any
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        params = f", params={dict(self.params)!r}" if self.params else ""
+        return f"Followup({self.input!r}{params})"
+
+
+@dataclass(frozen=True)
+class MetamorphicRelation:
+    """A named pair of an input transform and an output relation.
+
+    Parameters
+    ----------
+    name : str
+        Shown in failures and reports; unique within one test.
+    followup : callable(source_input) -> SearchStrategy
+        Draws follow-up inputs for a source input. The strategy may yield plain inputs or
+        :class:`Followup` values carrying the transform parameters.
+    relation : Relation
+        How the follow-up output must relate to the source output.
+    """
+
+    name: str
+    followup: Callable[[Any], SearchStrategy[Any]]
+    relation: Relation
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise InvalidArgument(f"name={self.name!r} must be a non-empty string")
+        _check_transform(self.followup, f"followup of relation {self.name!r}")
+        if not isinstance(self.relation, Relation):
+            raise InvalidArgument(
+                f"relation={self.relation!r} of {self.name!r} must be a Relation "
+                "(e.g. relations.equal()); did you forget the parentheses?"
+                if callable(self.relation)
+                else f"relation={self.relation!r} of {self.name!r} must be a Relation, "
+                "e.g. relations.equal() or relations.predicate(fn)"
+            )
+
+
+@dataclass(frozen=True)
+class MetamorphicCase:
+    """One drawn test case: a source input and its follow-ups per relation name."""
+
+    source: Any
+    followups: Mapping[str, tuple[Followup, ...]]
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{name!r}: {list(items)!r}" for name, items in self.followups.items())
+        return f"MetamorphicCase(source={self.source!r}, followups={{{parts}}})"
+
+
+def _check_transform(followup: Any, what: str) -> None:
+    if isinstance(followup, SearchStrategy):
+        raise InvalidArgument(
+            f"{what} is a strategy; it must be a function of the source input returning a "
+            f"strategy, e.g. lambda source: {followup!r}"
+        )
+    if not callable(followup):
+        raise InvalidArgument(
+            f"{what} must be callable(source_input) -> strategy, got {followup!r}"
+        )
+    try:
+        signature = inspect.signature(followup)
+    except (TypeError, ValueError):
+        return  # builtins without signatures: trust them
+    try:
+        signature.bind(object())
+    except TypeError:
+        raise InvalidArgument(
+            f"{what} must accept exactly one argument (the source input); its signature is "
+            f"{signature}"
+        ) from None
+
+
+def _resolve_relations(
+    followup: Any, relation: Any, relations: Any
+) -> tuple[MetamorphicRelation, ...]:
+    if relations is not None:
+        if followup is not None or relation is not None:
+            raise InvalidArgument("pass either followup= and relation=, or relations=, not both")
+        if isinstance(relations, MetamorphicRelation):
+            relations = [relations]
+        if not isinstance(relations, Sequence) or not relations:
+            raise InvalidArgument(
+                f"relations={relations!r} must be a non-empty list of MetamorphicRelation"
+            )
+        for index, item in enumerate(relations):
+            if not isinstance(item, MetamorphicRelation):
+                raise InvalidArgument(
+                    f"relations[{index}] is {item!r}; wrap transform and relation in "
+                    "MetamorphicRelation(name, followup, relation)"
+                )
+        names = [item.name for item in relations]
+        duplicates = sorted({name for name in names if names.count(name) > 1})
+        if duplicates:
+            raise InvalidArgument(f"relation names must be unique, repeated: {duplicates}")
+        return tuple(relations)
+    if followup is None or relation is None:
+        raise InvalidArgument(
+            "@metamorphic needs followup= and relation= (or relations=[MetamorphicRelation...])"
+        )
+    name = getattr(relation, "name", None) if isinstance(relation, Relation) else None
+    return (MetamorphicRelation(name or "relation", followup, relation),)
+
+
+def _validate_followups(followups: Any) -> int | None:
+    if followups is None:
+        return None
+    if isinstance(followups, bool) or not isinstance(followups, int):
+        raise InvalidArgument(
+            f"followups={followups!r} must be an int between 1 and {_MAX_FOLLOWUPS}"
+        )
+    if not 1 <= followups <= _MAX_FOLLOWUPS:
+        raise InvalidArgument(f"followups={followups} must be between 1 and {_MAX_FOLLOWUPS}")
+    return followups
+
+
+def _draw_followups(
+    draw: Callable[[SearchStrategy[Any]], Any], mr: MetamorphicRelation, source: Any, count: int
+) -> tuple[Followup, ...]:
+    strategy = mr.followup(source)
+    if not isinstance(strategy, SearchStrategy):
+        raise InvalidArgument(
+            f"followup of relation {mr.name!r} returned {describe_value(strategy)}, not a "
+            "Hypothesis strategy; return e.g. st.just(value) or st.permutations(source)"
+        )
+    items = []
+    for _ in range(count):
+        value = draw(strategy)
+        items.append(value if isinstance(value, Followup) else Followup(value))
+    return tuple(items)
+
+
+def _cases(
+    source: SearchStrategy[Any], mrs: tuple[MetamorphicRelation, ...], followups: int | None
+) -> SearchStrategy[MetamorphicCase]:
+    @st.composite
+    def cases(draw: Callable[[SearchStrategy[Any]], Any]) -> MetamorphicCase:
+        # Resolved per draw so that --mt-followups applies to tests that did not fix it.
+        recorder = current_recorder()
+        count = followups or (recorder.followups if recorder else DEFAULT_FOLLOWUPS)
+        value = draw(source)
+        return MetamorphicCase(
+            value, {mr.name: _draw_followups(draw, mr, value, count) for mr in mrs}
+        )
+
+    return cases()
