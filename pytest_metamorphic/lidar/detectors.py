@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.io.kitti import KittiCalibration, read_kitti_labels
+from pytest_metamorphic.lidar.io.kitti import KITTI_LABELS, KittiCalibration, read_kitti_labels
 from pytest_metamorphic.lidar.obstacles import LABELS, Box, Label
 
 __all__ = [
@@ -51,15 +51,7 @@ __all__ = [
 ]
 
 CLASS_LABELS: Mapping[str, Label] = {
-    # KITTI (OpenPCDet's and mmdetection3d's CLASS_NAMES for KITTI)
-    "Car": "car",
-    "Van": "car",
-    "Truck": "car",
-    "Tram": "car",
-    "Pedestrian": "pedestrian",
-    "Person_sitting": "pedestrian",
-    "Cyclist": "cyclist",
-    "Misc": "unknown",
+    **KITTI_LABELS,  # OpenPCDet's and mmdetection3d's CLASS_NAMES for KITTI
     # nuScenes detection classes
     "car": "car",
     "truck": "car",
@@ -154,6 +146,29 @@ def _check_length(values: NDArray[Any] | None, count: int, name: str, boxes: str
         raise InvalidArgument(f"{name} has shape {values.shape}; {boxes} has {count} rows")
 
 
+def _unpack(
+    given: tuple[Any, Any, Any], names: tuple[str, str, str], first: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64] | None]:
+    """(rows, label indices, scores or None) from arrays or from one prediction dict."""
+    boxes, labels, scores = given
+    box_key, label_key, score_key = names
+    if isinstance(boxes, Mapping):
+        if labels is not None or scores is not None:
+            raise InvalidArgument(f"pass a prediction dict alone, or {box_key} with {label_key}")
+        missing = {box_key, label_key} - set(boxes)
+        if missing:
+            raise InvalidArgument(f"the prediction dict has no {sorted(missing)}")
+        boxes, labels, scores = boxes[box_key], boxes[label_key], boxes.get(score_key)
+    if labels is None:
+        raise InvalidArgument(f"{label_key} is required ({first}-based indices into class_names)")
+    rows = _check_rows(_array(boxes, box_key), box_key)
+    indices = _array(labels, label_key, dtype=np.int64).reshape(-1)
+    values = None if scores is None else _array(scores, score_key).reshape(-1)
+    _check_length(indices, len(rows), label_key, box_key)
+    _check_length(values, len(rows), score_key, box_key)
+    return rows, indices, values
+
+
 def from_openpcdet(
     pred_boxes: Any,
     pred_labels: Any = None,
@@ -181,21 +196,9 @@ def from_openpcdet(
     label_map : mapping, optional
         Extra class-name -> label entries on top of :data:`CLASS_LABELS`.
     """
-    if isinstance(pred_boxes, Mapping):
-        if pred_labels is not None or pred_scores is not None:
-            raise InvalidArgument("pass a pred_dict alone, or pred_boxes with pred_labels")
-        missing = {"pred_boxes", "pred_labels"} - set(pred_boxes)
-        if missing:
-            raise InvalidArgument(f"the pred_dict has no {sorted(missing)}")
-        pred_labels, pred_scores = pred_boxes["pred_labels"], pred_boxes.get("pred_scores")
-        pred_boxes = pred_boxes["pred_boxes"]
-    if pred_labels is None:
-        raise InvalidArgument("pred_labels is required (1-based indices into class_names)")
-    rows = _check_rows(_array(pred_boxes, "pred_boxes"), "pred_boxes")
-    indices = _array(pred_labels, "pred_labels", dtype=np.int64).reshape(-1)
-    scores = None if pred_scores is None else _array(pred_scores, "pred_scores").reshape(-1)
-    _check_length(indices, len(rows), "pred_labels", "pred_boxes")
-    _check_length(scores, len(rows), "pred_scores", "pred_boxes")
+    rows, indices, scores = _unpack(
+        (pred_boxes, pred_labels, pred_scores), ("pred_boxes", "pred_labels", "pred_scores"), 1
+    )
     labels = _labels(indices, class_names, 1, "pred_labels", _mapping(label_map))
     return _boxes(rows, labels, scores, min_score, "pred_boxes")
 
@@ -233,22 +236,14 @@ def from_mmdet3d(
     min_score, label_map
         As for :func:`from_openpcdet`.
     """
-    if isinstance(bboxes_3d, Mapping):
-        if labels_3d is not None or scores_3d is not None:
-            raise InvalidArgument("pass pred_instances_3d alone, or bboxes_3d with labels_3d")
-        missing = {"bboxes_3d", "labels_3d"} - set(bboxes_3d)
-        if missing:
-            raise InvalidArgument(f"pred_instances_3d has no {sorted(missing)}")
-        labels_3d, scores_3d = bboxes_3d["labels_3d"], bboxes_3d.get("scores_3d")
-        bboxes_3d = bboxes_3d["bboxes_3d"]
-    if labels_3d is None:
-        raise InvalidArgument("labels_3d is required (0-based indices into class_names)")
+    rows, indices, scores = _unpack(
+        (bboxes_3d, labels_3d, scores_3d), ("bboxes_3d", "labels_3d", "scores_3d"), 0
+    )
     if convention not in ("v1", "v0"):
         raise InvalidArgument(f"convention={convention!r} must be 'v1' or 'v0'")
     given = _array(origin, "origin").reshape(-1)
     if given.shape != (3,) or not ((given >= 0) & (given <= 1)).all():
         raise InvalidArgument(f"origin={origin!r} must be 3 numbers in [0, 1]")
-    rows = _check_rows(_array(bboxes_3d, "bboxes_3d"), "bboxes_3d")
     if convention == "v0":
         rows[:, [3, 4]] = rows[:, [4, 3]]
         rows[:, 6] = -rows[:, 6] - math.pi / 2
@@ -259,10 +254,6 @@ def from_mmdet3d(
     rows[:, 0] += along * np.cos(rows[:, 6]) - across * np.sin(rows[:, 6])
     rows[:, 1] += along * np.sin(rows[:, 6]) + across * np.cos(rows[:, 6])
     rows[:, 2] += shift[2] * rows[:, 5]
-    indices = _array(labels_3d, "labels_3d", dtype=np.int64).reshape(-1)
-    scores = None if scores_3d is None else _array(scores_3d, "scores_3d").reshape(-1)
-    _check_length(indices, len(rows), "labels_3d", "bboxes_3d")
-    _check_length(scores, len(rows), "scores_3d", "bboxes_3d")
     labels = _labels(indices, class_names, 0, "labels_3d", _mapping(label_map))
     return _boxes(rows, labels, scores, min_score, "bboxes_3d")
 
