@@ -27,7 +27,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -178,6 +178,21 @@ def _frame_ranges(frame: Frame) -> tuple[tuple[float, float], tuple[float, float
     return (float(z.min()), float(z.max())), (float(intensity.min()), float(intensity.max()))
 
 
+def _seeded_points(
+    frame: Frame,
+    seeds: ArrayLike,
+    origins: NDArray[np.float64],
+    region: ROI,
+    limit: float,
+    what: str,
+) -> NDArray[np.float32]:
+    """Points for ``seeds`` in the cells at ``origins``, z and intensity over the frame's ranges."""
+    z_range, intensity_range = _frame_ranges(frame)
+    return _place_points(
+        _as_seeds(seeds), origins, region.cell_size, limit, z_range, intensity_range, what
+    )
+
+
 def _place_points(
     seeds: NDArray[np.int64],
     origins: NDArray[np.float64],
@@ -233,6 +248,9 @@ def _append_points(cloud: PointCloud, points: NDArray[np.float32]) -> PointCloud
     return PointCloud.concatenate([cloud, extra])
 
 
+_P = TypeVar("_P", bound="_InjectedPoints")
+
+
 @dataclass(frozen=True, eq=False)
 class _InjectedPoints:
     """Points added to a frame. ``points`` is (n, 4) float32: x, y, z, intensity."""
@@ -257,6 +275,18 @@ class _InjectedPoints:
 
     def __len__(self) -> int:
         return len(self.points)
+
+    @classmethod
+    def from_seeds(cls: type[_P], frame: Frame, seeds: ArrayLike, **options: Any) -> _P:
+        raise NotImplementedError
+
+    @classmethod
+    def sample(
+        cls: type[_P], frame: Frame, n: int, *, rng: np.random.Generator, **options: Any
+    ) -> _P:
+        """``n`` points with seeds drawn from a numpy generator (campaign mode); ``options``
+        as for :meth:`from_seeds`."""
+        return cls.from_seeds(frame, _draw_seeds(n, rng), **options)
 
     def apply(self, frame: Frame) -> Frame:
         """The frame with the points appended (ROI, boxes, pose and origin kept)."""
@@ -331,32 +361,7 @@ class NoiseOutsideROI(_InjectedPoints):
         region = _frame_roi(frame, roi)
         limit = _check_range(region, max_range, margin_cells)
         origins = region.cell_origins("free", margin_cells=int(margin_cells), max_range=limit)
-        z_range, intensity_range = _frame_ranges(frame)
-        points = _place_points(
-            _as_seeds(seeds),
-            origins,
-            region.cell_size,
-            limit,
-            z_range,
-            intensity_range,
-            "outside the ROI",
-        )
-        return cls(points)
-
-    @classmethod
-    def sample(
-        cls,
-        frame: Frame,
-        n: int,
-        *,
-        rng: np.random.Generator,
-        roi: ROI | None = None,
-        max_range: float = 120.0,
-        margin_cells: int = 1,
-    ) -> NoiseOutsideROI:
-        """``n`` noise points with seeds drawn from a numpy generator (campaign mode)."""
-        seeds = _draw_seeds(n, rng)
-        return cls.from_seeds(frame, seeds, roi=roi, max_range=max_range, margin_cells=margin_cells)
+        return cls(_seeded_points(frame, seeds, origins, region, limit, "outside the ROI"))
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -391,29 +396,8 @@ class NoiseInsideROI(_InjectedPoints):
             raise InvalidArgument(f"clearance={clearance!r} must be >= 0")
         origins = region.cell_origins("interior", margin_cells=int(margin_cells), max_range=limit)
         origins = origins[~_near_boxes(origins, region.cell_size, boxes, float(clearance))]
-        z_range, intensity_range = _frame_ranges(frame)
-        points = _place_points(
-            _as_seeds(seeds),
-            origins,
-            region.cell_size,
-            limit,
-            z_range,
-            intensity_range,
-            "inside the ROI away from obstacles",
-        )
-        return cls(points)
-
-    @classmethod
-    def sample(
-        cls,
-        frame: Frame,
-        n: int,
-        *,
-        rng: np.random.Generator,
-        **options: Any,
-    ) -> NoiseInsideROI:
-        """``n`` points with seeds drawn from a numpy generator; options as :meth:`from_seeds`."""
-        return cls.from_seeds(frame, _draw_seeds(n, rng), **options)
+        where = "inside the ROI away from obstacles"
+        return cls(_seeded_points(frame, seeds, origins, region, limit, where))
 
 
 def _draw_seeds(n: Any, rng: Any) -> NDArray[np.int64]:
