@@ -93,3 +93,33 @@ def test_campaigns_record_a_timeout_and_go_on() -> None:
 def test_bad_timeouts_are_named(bad: object) -> None:
     with pytest.raises(InvalidArgument, match="timeout="):
         metamorphic(source=st.just(1), followup=st.just, relation=relations.equal(), timeout=bad)  # type: ignore[arg-type]
+
+
+def test_a_hanging_input_is_saved_for_replay_like_any_failure(request) -> None:
+    from hypothesis.database import InMemoryExampleDatabase
+
+    if request.config.getoption("hypothesis_seed", None) is not None:
+        pytest.skip("Hypothesis saves no examples when --hypothesis-seed fixes the seed")
+
+    database = InMemoryExampleDatabase()
+    calls: list[int] = []
+
+    # Random search (derandomize excludes a database); every negative input hangs, and
+    # 20 examples of integers(-3, 3) always include one.
+    @settings(
+        max_examples=20, database=database, phases=[Phase.reuse, Phase.generate, Phase.shrink]
+    )
+    @metamorphic(source=st.integers(-3, 3), followup=lambda x: st.just(x),
+                 relation=relations.equal(), followups=1, timeout=0.2)  # fmt: skip
+    def test_abs(x: int) -> int:
+        calls.append(x)
+        return sleepy(x)
+
+    with pytest.raises(SystemUnderTestCrash, match="timed out"):
+        test_abs()
+    saved = [value for values in database.data.values() for value in values]
+    assert saved, "Hypothesis did not save the hanging case"
+    calls.clear()
+    with pytest.raises(SystemUnderTestCrash, match="timed out"):
+        test_abs()  # the saved case is replayed first
+    assert calls[0] < 0
