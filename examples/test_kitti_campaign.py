@@ -31,6 +31,10 @@ if not KITTI.is_dir():
     pytest.skip(f"KITTI frames not found at {KITTI}", allow_module_level=True)
 
 FOLLOWUPS = 50
+# ROI-first stacks: every obstacle they report is judged, as in the paper. With the default
+# scope (obstacles wholly inside the ROI) the mutant's rates fall to 0 / 2.7 / 15.7%: its
+# fault mostly hits obstacles the ROI's edge cuts, which that scope does not judge.
+SCOPE = "all"
 frames = FrameCatalog(KITTI, roi=kitti_label_region())
 reference = ReferencePerception()
 faulty = mutant("full_cloud_ground")  # Apollo's use_full_cloud: the paper's root cause
@@ -45,7 +49,13 @@ def faulty_system(frame: Frame) -> list[Box]:
 
 
 test_kitti_mr1_reference = campaign_test(
-    mr1_campaign(reference_system, name="MR1 KITTI reference", frames=frames, followups=FOLLOWUPS),
+    mr1_campaign(
+        reference_system,
+        name="MR1 KITTI reference",
+        frames=frames,
+        followups=FOLLOWUPS,
+        scope=SCOPE,
+    ),
     shards=len(frames),
 )
 test_kitti_mr1_full_cloud_ground = campaign_test(
@@ -54,6 +64,7 @@ test_kitti_mr1_full_cloud_ground = campaign_test(
         name="MR1 KITTI mutant full_cloud_ground",
         frames=frames,
         followups=FOLLOWUPS,
+        scope=SCOPE,
     ),
     shards=len(frames),
 )
