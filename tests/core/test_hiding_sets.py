@@ -166,7 +166,7 @@ def test_engine_reports_k_points_the_hidden_obstacle_and_calls() -> None:
     ]
     assert hidden and f"({hidden[0].describe()}) of the source has no match" in message
     assert f"  hidden: {hidden[0].describe()} (" in message and " m from th" in message
-    assert "inside the ROI's edge)" in message
+    assert "inside the ROI's edge, footprint" in message
 
 
 def test_ranking_puts_points_near_the_lost_obstacle_first() -> None:

@@ -8,48 +8,78 @@ relations: points added or removed outside the ROI change obstacles *outside* it
 the relations' ROI scope (:mod:`pytest_metamorphic.lidar.scope`) must not call
 violations.
 
-Its ground estimate takes each 1 m cell's second-lowest distinct height
-(``GroundParams(rank=2)``): with the plain minimum, one stray low return up to 3 m
-outside the ROI would lift the road inside it into an "obstacle" that swallows real ones
-near the ROI's edge, which is Apollo's ``use_full_cloud`` fault (the ``full_cloud_ground``
-mutant) and a real MR1 violation in a whole-scene detector too
-(``WholeScenePerception(PerceptionParams(ground=GroundParams(rank=1)))`` shows it).
+Its ground model is split at the ROI's edge, as map-aware stacks model the road surface
+apart from off-road terrain: the ground under ROI points comes from ROI points, the
+ground elsewhere from the other points. With one ground model across the edge
+(``split_ground=False``), one stray low return up to 3 m outside the ROI lifts the road
+inside it into an "obstacle" that swallows real ones near the edge: Apollo's
+``use_full_cloud`` fault (the ``full_cloud_ground`` mutant), and a real MR1 violation in a
+whole-scene detector too (``tests/lidar/perception/test_whole_scene.py`` shows it).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_metamorphic.lidar.perception.ground import GroundParams
-from pytest_metamorphic.lidar.perception.pipeline import PerceptionParams, ReferencePerception
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.perception.ground import ground_heights
+from pytest_metamorphic.lidar.perception.pipeline import (
+    PerceptionParams,
+    ReferencePerception,
+    Stages,
+    _as_input,
+)
 
-__all__ = ["WHOLE_SCENE_PARAMS", "WholeScenePerception"]
-
-WHOLE_SCENE_PARAMS = PerceptionParams(ground=GroundParams(rank=2))
-"""The defaults of :class:`WholeScenePerception`: the reference's, with a rank-2 ground."""
+__all__ = ["WholeScenePerception"]
 
 
 class WholeScenePerception(ReferencePerception):
-    """The reference pipeline on every point of the sweep: ``perception(cloud, roi=None)``.
+    """The reference pipeline on every point of the sweep: ``perception(cloud, roi)``.
 
-    The ``roi`` argument is accepted and ignored (the detector reports the whole scene),
-    so it plugs into the same tests as the reference. Ground removal, segmentation,
-    MinBox and classes are the reference's.
+    Parameters
+    ----------
+    params : PerceptionParams, optional
+        The reference's parameters.
+    split_ground : bool
+        Model the ground separately inside and outside the ROI (default). False: one
+        ground model over the whole sweep, which lets off-road points change on-road
+        obstacles near the ROI's edge.
+
+    The ROI only splits the ground model; obstacles are reported everywhere. Without an
+    ROI the whole sweep has one ground model.
     """
 
     name = "whole_scene"
 
-    def __init__(self, params: PerceptionParams | None = None) -> None:
-        super().__init__(params or WHOLE_SCENE_PARAMS)
+    def __init__(self, params: PerceptionParams | None = None, *, split_ground: bool = True):
+        super().__init__(params)
+        if not isinstance(split_ground, bool):
+            raise InvalidArgument(f"split_ground={split_ground!r} must be True or False")
+        self.split_ground = split_ground
 
-    def roi_mask(self, points: NDArray[np.float32], roi: Any) -> NDArray[np.bool_]:
-        return np.ones(len(points), dtype=bool)
+    def __repr__(self) -> str:
+        return f"WholeScenePerception(split_ground={self.split_ground})"
 
-    def with_ground(self, **changes: Any) -> WholeScenePerception:
-        """A copy with ground parameters changed, e.g. ``with_ground(rank=1)``."""
-        ground = replace(self.params.ground, **changes)
-        return WholeScenePerception(replace(self.params, ground=ground))
+    def run(self, cloud: Any, roi: Any = None) -> Stages:
+        points, roi = _as_input(cloud, roi)
+        sweep = self.prepare(points)
+        ground_z = self._ground(sweep, roi)
+        keep = self.obstacle_mask(sweep, ground_z, sweep)
+        obstacles, ground_z = sweep[keep], ground_z[keep]
+        clusters = self.segment(obstacles, sweep)
+        boxes = self.build_boxes(obstacles, ground_z, clusters)
+        return Stages(len(sweep), len(obstacles), clusters.count, boxes)
+
+    def _ground(self, sweep: NDArray[np.float32], roi: Any) -> NDArray[np.float32]:
+        if roi is None or not self.split_ground:
+            return ground_heights(sweep, self.params.ground)
+        # The exact polygons, as the scope judges obstacles: every point of a judged
+        # obstacle is on the road side, whatever the bitmap does in edge cells.
+        inside = np.asarray(roi.contains(sweep[:, :2], method="exact"), dtype=bool)
+        ground = np.empty(len(sweep), dtype=np.float32)
+        ground[inside] = ground_heights(sweep[inside], self.params.ground)
+        ground[~inside] = ground_heights(sweep[~inside], self.params.ground)
+        return ground
