@@ -10,6 +10,7 @@ background (it cannot block the interpreter's exit); systems in another process
 
 from __future__ import annotations
 
+import contextvars
 import math
 import threading
 from collections.abc import Callable
@@ -41,8 +42,6 @@ def call_with_timeout(
     """
     if seconds is None:
         return fn(*args, **kwargs)
-    import contextvars
-
     context = contextvars.copy_context()
     outcome: dict[str, Any] = {}
 

@@ -33,7 +33,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher, one_to_one
 from pytest_metamorphic.core.perturbation import register_reducible
 from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher, unmatched_twins
 from pytest_metamorphic.lidar.perturb import (
     DropPoints,
     DuplicatePoints,
@@ -89,15 +89,7 @@ def changed_obstacles(
     """``(source indices, follow-up indices)`` of boxes without an identical partner."""
     source = _boxes(source_output, "source")
     followup = _boxes(followup_output, "follow-up")
-    unused = list(range(len(followup)))
-    gone = []
-    for index, box in enumerate(source):
-        twin = next((j for j in unused if followup[j] == box), None)
-        if twin is None:
-            gone.append(index)
-        else:
-            unused.remove(twin)
-    return gone, unused
+    return unmatched_twins(source, followup)
 
 
 def footprint_distances(xy: NDArray[np.floating], boxes: Sequence[Box]) -> NDArray[np.float64]:

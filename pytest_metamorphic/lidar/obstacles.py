@@ -10,6 +10,7 @@ for generating realistic obstacles.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -29,6 +30,7 @@ __all__ = [
     "SizePrior",
     "bev_iou",
     "center_distances",
+    "unmatched_twins",
 ]
 
 Label = Literal["car", "pedestrian", "cyclist", "unknown"]
@@ -157,6 +159,30 @@ class Box:
 
     def __str__(self) -> str:
         return self.describe()
+
+
+def unmatched_twins(a: Sequence[Box], b: Sequence[Box]) -> tuple[list[int], list[int]]:
+    """Indices of ``a`` and of ``b`` without an identical partner on the other side.
+
+    A multiset difference (repeated equal boxes pair up one by one, in order), in linear
+    time: boxes hash by value. Equality ignores ``points``, as ``Box ==`` does.
+    """
+    available = Counter(b)
+    gone = []
+    for index, box in enumerate(a):
+        if available[box]:
+            available[box] -= 1
+        else:
+            gone.append(index)
+    paired = Counter(b)
+    paired.subtract(available)  # per box value: how many of b's copies were paired
+    new = []
+    for index, box in enumerate(b):
+        if paired[box]:
+            paired[box] -= 1
+        else:
+            new.append(index)
+    return gone, new
 
 
 # -- size priors -----------------------------------------------------------------------------

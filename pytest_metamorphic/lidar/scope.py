@@ -61,7 +61,7 @@ from pytest_metamorphic.core.relations import (
     equal,
     subset,
 )
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher, bev_iou
+from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher, bev_iou, unmatched_twins
 
 __all__ = [
     "DEFAULT_SCOPE",
@@ -225,19 +225,6 @@ def _is_box_list(value: Any) -> bool:
 _EXACT = equal()
 
 
-def _twins(a: list[Box], b: list[Box]) -> tuple[list[int], list[int]]:
-    """Indices of ``a`` and of ``b`` left without an identical partner (multiset difference)."""
-    unused = list(range(len(b)))
-    gone = []
-    for index, box in enumerate(a):
-        twin = next((j for j in unused if b[j] == box), None)
-        if twin is None:
-            gone.append(index)
-        else:
-            unused.remove(twin)
-    return gone, unused
-
-
 class _Scoped(Relation):
     """Splitting outputs into judged and unjudged obstacles; information on the unjudged."""
 
@@ -267,7 +254,7 @@ class _Scoped(Relation):
         outside2 = [
             box for box, judged in zip(followup, followup_judged, strict=True) if not judged
         ]
-        gone, new = _twins(outside, outside2)
+        gone, new = unmatched_twins(outside, outside2)
         return {
             "scope": self.scope.describe(),
             "judged_source": int(source_judged.sum()),
@@ -375,8 +362,8 @@ class _Equal(_Scoped):
         )
         details: dict[str, Any] = self._unjudged(source, followup, judged, followup_judged)
         # A judged obstacle needs an identical twin among *all* obstacles on the other side.
-        gone, _ = _twins([source[i] for i in np.flatnonzero(judged)], followup)
-        new, _ = _twins([followup[j] for j in np.flatnonzero(followup_judged)], source)
+        gone, _ = unmatched_twins([source[i] for i in np.flatnonzero(judged)], followup)
+        new, _ = unmatched_twins([followup[j] for j in np.flatnonzero(followup_judged)], source)
         lost = [int(np.flatnonzero(judged)[i]) for i in gone]
         gained = [int(np.flatnonzero(followup_judged)[j]) for j in new]
         pieces = _pieces_of(

@@ -53,7 +53,7 @@ class FullCloudGround(ReferencePerception):
     name = "full_cloud_ground"
 
     def ground_heights(
-        self, points: NDArray[np.float32], sweep: NDArray[np.float32]
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
     ) -> NDArray[np.float32]:
         both = np.concatenate([points, sweep])
         return ground_heights(both, self.params.ground)[: len(points)]
@@ -134,7 +134,7 @@ class GlobalGroundPlane(ReferencePerception):
     name = "global_ground_plane"
 
     def ground_heights(
-        self, points: NDArray[np.float32], sweep: NDArray[np.float32]
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
     ) -> NDArray[np.float32]:
         _, inverse = np.unique(_voxel_keys(sweep[:, :2], 2.0), return_inverse=True)
         lowest = np.full(inverse.max() + 1, np.inf)

@@ -181,7 +181,7 @@ class ReferencePerception:
         points, roi = _as_input(cloud, roi)
         sweep = self.prepare(points)
         in_roi = sweep[self.roi_mask(sweep, roi)]
-        ground_z = self.ground_heights(in_roi, sweep)
+        ground_z = self.ground_heights(in_roi, sweep, roi)
         keep = self.obstacle_mask(in_roi, ground_z, sweep)
         obstacles, ground_z = in_roi[keep], ground_z[keep]
         clusters = self.segment(obstacles, sweep)
@@ -203,9 +203,9 @@ class ReferencePerception:
         return np.asarray(roi.contains(points[:, :2], method=self.params.roi_method), dtype=bool)
 
     def ground_heights(
-        self, points: NDArray[np.float32], sweep: NDArray[np.float32]
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: Any = None
     ) -> NDArray[np.float32]:
-        """(n,) float32: local ground height under each ROI point."""
+        """(n,) float32: local ground height under each ROI point (``roi``: the frame's)."""
         return ground_heights(points, self.params.ground)
 
     def obstacle_mask(

@@ -26,12 +26,7 @@ from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.perception.ground import ground_heights
-from pytest_metamorphic.lidar.perception.pipeline import (
-    PerceptionParams,
-    ReferencePerception,
-    Stages,
-    _as_input,
-)
+from pytest_metamorphic.lidar.perception.pipeline import PerceptionParams, ReferencePerception
 
 __all__ = ["WholeScenePerception"]
 
@@ -63,23 +58,18 @@ class WholeScenePerception(ReferencePerception):
     def __repr__(self) -> str:
         return f"WholeScenePerception(split_ground={self.split_ground})"
 
-    def run(self, cloud: Any, roi: Any = None) -> Stages:
-        points, roi = _as_input(cloud, roi)
-        sweep = self.prepare(points)
-        ground_z = self._ground(sweep, roi)
-        keep = self.obstacle_mask(sweep, ground_z, sweep)
-        obstacles, ground_z = sweep[keep], ground_z[keep]
-        clusters = self.segment(obstacles, sweep)
-        boxes = self.build_boxes(obstacles, ground_z, clusters)
-        return Stages(len(sweep), len(obstacles), clusters.count, boxes)
+    def roi_mask(self, points: NDArray[np.float32], roi: Any) -> NDArray[np.bool_]:
+        return np.ones(len(points), dtype=bool)  # every point is seen: no ROI filter
 
-    def _ground(self, sweep: NDArray[np.float32], roi: Any) -> NDArray[np.float32]:
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: Any = None
+    ) -> NDArray[np.float32]:
         if roi is None or not self.split_ground:
-            return ground_heights(sweep, self.params.ground)
+            return ground_heights(points, self.params.ground)
         # The exact polygons, as the scope judges obstacles: every point of a judged
         # obstacle is on the road side, whatever the bitmap does in edge cells.
-        inside = np.asarray(roi.contains(sweep[:, :2], method="exact"), dtype=bool)
-        ground = np.empty(len(sweep), dtype=np.float32)
-        ground[inside] = ground_heights(sweep[inside], self.params.ground)
-        ground[~inside] = ground_heights(sweep[~inside], self.params.ground)
+        inside = np.asarray(roi.contains(points[:, :2], method="exact"), dtype=bool)
+        ground = np.empty(len(points), dtype=np.float32)
+        ground[inside] = ground_heights(points[inside], self.params.ground)
+        ground[~inside] = ground_heights(points[~inside], self.params.ground)
         return ground
