@@ -1,0 +1,41 @@
+"""Campaigns: violation rates from independent sampling.
+
+Hypothesis searches for failures; it does not sample independently, so it cannot say how
+*often* a relation fails. A :class:`Campaign` does: S sources, each perturbed at every size
+in ``sizes`` ``followups`` times, all drawn from NumPy generators seeded by
+``(seed, source index, ...)``. Every unit of work therefore has its own random stream, so
+the result does not depend on the order, the process (pytest-xdist shards) or on resuming
+an interrupted run.
+
+Results are appended to a JSONL log as each source finishes (flushed and fsynced): an
+interrupted campaign loses at most the source in progress and resumes where it stopped.
+
+The package's modules follow that story: :mod:`.spec` (what a campaign is),
+:mod:`.results` (tallies that merge exactly), :mod:`.log` (the JSONL log), :mod:`.run`
+(this process), :mod:`.cluster` (a Dask cluster), :mod:`.testing` (pytest tests).
+"""
+
+from pytest_metamorphic.core.campaign.log import read_campaign_log, shard_indices
+from pytest_metamorphic.core.campaign.results import (
+    CampaignResult,
+    SizeCounts,
+    merge_results,
+    result_from_json,
+)
+from pytest_metamorphic.core.campaign.run import run_campaign
+from pytest_metamorphic.core.campaign.spec import Campaign, CampaignInput, campaign_inputs
+from pytest_metamorphic.core.campaign.testing import campaign_test
+
+__all__ = [
+    "Campaign",
+    "CampaignInput",
+    "CampaignResult",
+    "SizeCounts",
+    "campaign_inputs",
+    "campaign_test",
+    "merge_results",
+    "read_campaign_log",
+    "result_from_json",
+    "run_campaign",
+    "shard_indices",
+]

@@ -1,0 +1,183 @@
+"""Campaign tallies: what one source's record adds, and results that merge exactly."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.intervals import Rate, wilson
+
+__all__ = ["CampaignResult", "SizeCounts", "merge_results", "result_from_json", "tally"]
+
+_TALLIES = ("pairs", "fewer", "equal", "more", "violations", "crashes", "unjudged_changes")
+
+
+@dataclass
+class SizeCounts:
+    """Tallies for one perturbation size; all fields add up across shards."""
+
+    pairs: int = 0
+    fewer: int = 0  # |O| > |O'|
+    equal: int = 0
+    more: int = 0  # |O| < |O'|
+    violations: int = 0
+    crashes: int = 0
+    unjudged_changes: int = 0  # pairs that changed only outside the relation's scope
+    # category -> [pairs where that category lost elements, kept count, gained]
+    categories: dict[str, list[int]] = field(default_factory=dict)
+
+    def add(self, other: SizeCounts) -> None:
+        for name in _TALLIES:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        for category, counts in other.categories.items():
+            mine = self.categories.setdefault(category, [0, 0, 0])
+            for i in range(3):
+                mine[i] += counts[i]
+
+    def rate(self, name: str) -> Rate:
+        return wilson(getattr(self, name), self.pairs)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "pairs": self.pairs,
+            "fewer": self.fewer,
+            "equal": self.equal,
+            "more": self.more,
+            "violations": self.violations,
+            "crashes": self.crashes,
+            "unjudged_changes": self.unjudged_changes,
+            "categories": {k: list(v) for k, v in sorted(self.categories.items())},
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> SizeCounts:
+        counts = cls(**{k: v for k, v in data.items() if k != "categories"})
+        counts.categories = {k: list(v) for k, v in data.get("categories", {}).items()}
+        return counts
+
+
+@dataclass
+class CampaignResult:
+    """Aggregated campaign results; mergeable, and identical however the work was split."""
+
+    header: dict[str, Any]
+    sizes: dict[int, SizeCounts]
+    sources_done: set[int] = field(default_factory=set)
+    sut_calls: int = 0
+    source_crashes: int = 0
+    examples: list[dict[str, Any]] = field(default_factory=list)
+    keep_examples: int = 20
+
+    @property
+    def complete(self) -> bool:
+        return len(self.sources_done) == self.header["sources"]
+
+    @property
+    def sut_calls_saved(self) -> int:
+        """SUT runs caching avoided: without it every pair would re-run its source."""
+        return sum(counts.pairs for counts in self.sizes.values()) - len(self.sources_done)
+
+    def merge(self, other: CampaignResult) -> None:
+        if other.header != self.header:
+            raise InvalidArgument("cannot merge results of different campaigns")
+        overlap = self.sources_done & other.sources_done
+        if overlap:
+            raise InvalidArgument(f"sources counted twice when merging: {sorted(overlap)[:5]}")
+        for size, counts in other.sizes.items():
+            self.sizes.setdefault(size, SizeCounts()).add(counts)
+        self.sources_done |= other.sources_done
+        self.sut_calls += other.sut_calls
+        self.source_crashes += other.source_crashes
+        self.examples.extend(other.examples)
+        self._trim_examples()
+
+    def _trim_examples(self) -> None:
+        # The first violations in (source, size, follow-up) order: the same set whichever
+        # way the sources were split over shards.
+        self.examples.sort(key=lambda e: (e["source"], e["size"], e["followup"]))
+        del self.examples[self.keep_examples :]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "header": self.header,
+            "complete": self.complete,
+            "source_indices": sorted(self.sources_done),
+            "sources_done": len(self.sources_done),
+            "sut_calls": self.sut_calls,
+            "sut_calls_saved": self.sut_calls_saved,
+            "source_crashes": self.source_crashes,
+            "sizes": {
+                str(size): {
+                    **counts.to_json(),
+                    "rates": {
+                        name: counts.rate(name).to_json()
+                        for name in ("fewer", "equal", "more", "violations")
+                    },
+                }
+                for size, counts in sorted(self.sizes.items())
+            },
+            "examples": self.examples,
+        }
+
+
+def result_from_json(data: dict[str, Any]) -> CampaignResult:
+    """Rebuild a result from :meth:`CampaignResult.to_json` (e.g. sent by an xdist worker)."""
+    return CampaignResult(
+        header=data["header"],
+        sizes={
+            int(k): SizeCounts.from_json({key: value for key, value in v.items() if key != "rates"})
+            for k, v in data["sizes"].items()
+        },
+        sources_done=set(data["source_indices"]),
+        sut_calls=data["sut_calls"],
+        source_crashes=data["source_crashes"],
+        examples=list(data["examples"]),
+        keep_examples=max(20, len(data["examples"])),
+    )
+
+
+def tally(result: CampaignResult, record: dict[str, Any]) -> None:
+    result.sources_done.add(record["source"])
+    result.sut_calls += record["sut_calls"]
+    if "crash" in record:
+        result.source_crashes += 1
+        return
+    for pair in record["pairs"]:
+        counts = result.sizes.setdefault(pair["size"], SizeCounts())
+        counts.pairs += 1
+        if "crash" in pair:
+            counts.crashes += 1
+            continue
+        o, o2 = pair["o"], pair["o2"]
+        if o > o2:
+            counts.fewer += 1
+        elif o == o2:
+            counts.equal += 1
+        else:
+            counts.more += 1
+        if pair.get("unjudged_changes"):
+            counts.unjudged_changes += 1
+        if not pair["holds"]:
+            counts.violations += 1
+            result.examples.append({"source": record["source"], **pair})
+        for category, (a, b) in pair.get("categories", {}).items():
+            slot = counts.categories.setdefault(category, [0, 0, 0])
+            slot[0 if a > b else 1 if a == b else 2] += 1
+
+
+def merge_results(results: Iterable[CampaignResult]) -> CampaignResult:
+    """Merge shard results into one (raises if they belong to different campaigns)."""
+    results = list(results)
+    if not results:
+        raise InvalidArgument("merge_results() needs at least one result")
+    first = results[0]
+    merged = CampaignResult(
+        first.header,
+        {int(k): SizeCounts() for k in first.header["sizes"]},
+        keep_examples=max(r.keep_examples for r in results),
+    )
+    for result in results:
+        merged.merge(result)
+    return merged

@@ -1,0 +1,142 @@
+"""What a campaign is: its sources, follow-ups, system, relation and seeds."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import Relation
+
+__all__ = ["Campaign", "CampaignInput", "campaign_inputs", "draw_followup"]
+
+LOG_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """An i.i.d. violation-rate experiment on one system under test.
+
+    Parameters
+    ----------
+    name : str
+    source : callable(rng, index) -> source input
+        Draws (or loads) source ``index`` using ``rng`` (a ``numpy.random.Generator``).
+    followup : callable(source_input, size, rng) -> follow-up input
+        Perturbs the source with ``size`` elements (e.g. injected points).
+    system : callable(input) -> output
+        The system under test; run once per source (the output is reused) and once per
+        follow-up.
+    relation : Relation
+        The strict relation counted as a violation (e.g. ``subset`` for MR1).
+    sizes : sequence of int
+        Perturbation sizes, e.g. ``(10, 100, 1000)``.
+    sources : int
+        Number of sources S.
+    followups : int
+        Follow-ups per source and size F.
+    seed : int
+    category : callable(element) -> str, optional
+        Category of an output element (e.g. a box's label) for per-category breakdowns.
+    counted : callable(output, input) -> collection, optional
+        The part of an output the table counts (|O| vs |O'|, categories): for a scoped
+        relation, what it judges (e.g. obstacles inside the ROI). Default: all of it.
+    """
+
+    name: str
+    source: Callable[[np.random.Generator, int], Any]
+    followup: Callable[[Any, int, np.random.Generator], Any]
+    system: Callable[[Any], Any]
+    relation: Relation
+    sizes: Sequence[int] = (10, 100, 1000)
+    sources: int = 1000
+    followups: int = 1
+    seed: int = 0
+    category: Callable[[Any], str] | None = None
+    counted: Callable[[Any, Any], Any] | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise InvalidArgument(f"name={self.name!r} must be a non-empty string")
+        for argument in ("source", "followup", "system"):
+            if not callable(getattr(self, argument)):
+                raise InvalidArgument(f"{argument}={getattr(self, argument)!r} must be callable")
+        for argument in ("category", "counted"):
+            value = getattr(self, argument)
+            if value is not None and not callable(value):
+                raise InvalidArgument(f"{argument}={value!r} must be callable or None")
+        if not isinstance(self.relation, Relation):
+            raise InvalidArgument(f"relation={self.relation!r} must be a Relation")
+        sizes = tuple(self.sizes)
+        if not sizes or any(not isinstance(n, int) or n < 0 for n in sizes):
+            raise InvalidArgument(f"sizes={self.sizes!r} must be a non-empty list of ints >= 0")
+        object.__setattr__(self, "sizes", sizes)
+        for argument in ("sources", "followups"):
+            value = getattr(self, argument)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InvalidArgument(f"{argument}={value!r} must be an int >= 1")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidArgument(f"seed={self.seed!r} must be an int >= 0")
+
+    def header(self) -> dict[str, Any]:
+        """What identifies this campaign's results: a log is resumable only if it matches."""
+        return {
+            "version": LOG_VERSION,
+            "campaign": self.name,
+            "relation": self.relation.name,
+            "seed": self.seed,
+            "sources": self.sources,
+            "sizes": list(self.sizes),
+            "followups": self.followups,
+        }
+
+    def source_rng(self, index: int) -> np.random.Generator:
+        return np.random.default_rng([self.seed, index])
+
+    def followup_rng(self, index: int, size_index: int, followup: int) -> np.random.Generator:
+        # A longer entropy tuple than source_rng's, so the streams never coincide.
+        return np.random.default_rng([self.seed, index, 1 + size_index, followup])
+
+
+def draw_followup(
+    campaign: Campaign, source_input: Any, index: int, size_index: int, f: int
+) -> tuple[Any, Mapping[str, Any]]:
+    """Follow-up ``f`` of source ``index`` at ``sizes[size_index]``: (input, params)."""
+    size = campaign.sizes[size_index]
+    followup = campaign.followup(source_input, size, campaign.followup_rng(index, size_index, f))
+    return getattr(followup, "input", followup), getattr(followup, "params", {})
+
+
+@dataclass(frozen=True)
+class CampaignInput:
+    """One input a campaign runs its system on (see :func:`campaign_inputs`).
+
+    ``size`` and ``followup`` are None for the source input itself.
+    """
+
+    source: int
+    size: int | None
+    followup: int | None
+    input: Any
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+def campaign_inputs(
+    campaign: Campaign, sources: Iterable[int] | None = None
+) -> Iterator[CampaignInput]:
+    """Every input of the campaign (each source, then its follow-ups), as a run draws them.
+
+    The same seeds as :func:`run_campaign`, so the inputs are exactly those a run gives
+    its system: the basis of offline evaluation (export the inputs, run a detector over
+    them anywhere, evaluate its predictions).
+    """
+    for index in range(campaign.sources) if sources is None else sources:
+        source_input = campaign.source(campaign.source_rng(index), index)
+        yield CampaignInput(index, None, None, source_input)
+        for size_index, size in enumerate(campaign.sizes):
+            for f in range(campaign.followups):
+                value, params = draw_followup(campaign, source_input, index, size_index, f)
+                yield CampaignInput(index, size, f, value, params)
