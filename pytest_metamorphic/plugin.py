@@ -37,6 +37,7 @@ _WRITER = pytest.StashKey[Any]()
 _REPLAYS = pytest.StashKey[list]()
 _REPLAY_RESULTS = pytest.StashKey[list]()
 _ARTIFACT_LIST = pytest.StashKey[list]()
+_DASK_CLIENT = pytest.StashKey[Any]()
 CAMPAIGN_PROPERTY = "metamorphic_campaign"
 ARTIFACT_PROPERTY = "metamorphic_artifact"
 REPLAY_PROPERTY = "metamorphic_replay"
@@ -55,6 +56,8 @@ class Options:
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
     replay: tuple[Path, ...] = ()
     timeout: float | None = None
+    dask: str | None = None
+    dask_batch: int | None = None
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -134,6 +137,22 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         help="time limit of one call of the system under test, in metamorphic tests and "
         "campaigns; a call past it is a crash, not a violation (ini: mt_timeout; default none)",
     )
+    group.addoption(
+        "--mt-dask",
+        default=None,
+        metavar="ADDRESS",
+        help="run campaigns on a Dask cluster: a scheduler address (tcp://host:8786) or "
+        "local:N for N local worker processes (ini: mt_dask; needs the dask extra)",
+    )
+    group.addoption(
+        "--mt-dask-batch",
+        default=None,
+        metavar="N",
+        help="sources per Dask task (ini: mt_dask_batch; default guided: up to 8, fewer "
+        "towards the end)",
+    )
+    parser.addini("mt_dask", "Dask scheduler address or local:N for campaigns", default=None)
+    parser.addini("mt_dask_batch", "sources per Dask task", default=None)
     parser.addini("mt_timeout", "seconds one call of the system under test may take", default=None)
     parser.addini("mt_artifacts", "where violation artifacts are saved", default=None)
     parser.addini("mt_minimize_budget", "SUT calls allowed per reduction", default=None)
@@ -179,6 +198,7 @@ def _options(config: pytest.Config) -> Options:
     campaign = bool(config.getoption("mt_campaign"))
     if resume and not campaign:
         raise pytest.UsageError("--mt-resume only makes sense with --mt-campaign")
+    dask, dask_batch = _dask_options(config, campaign)
     return Options(
         followups,
         bool(check),
@@ -190,7 +210,46 @@ def _options(config: pytest.Config) -> Options:
         minimize_budget=_budget_option(config),
         replay=tuple(_replay_option(config)),
         timeout=_timeout_option(config),
+        dask=dask,
+        dask_batch=dask_batch,
     )
+
+
+def _dask_options(config: pytest.Config, campaign: bool) -> tuple[str | None, int | None]:
+    address, source = config.getoption("mt_dask"), "--mt-dask"
+    if address is None:
+        address, source = config.getini("mt_dask") or None, "ini mt_dask"
+    raw, batch_source = config.getoption("mt_dask_batch"), "--mt-dask-batch"
+    if raw is None:
+        raw, batch_source = config.getini("mt_dask_batch") or None, "ini mt_dask_batch"
+    if address is None:
+        if raw is not None and batch_source.startswith("--"):
+            raise pytest.UsageError("--mt-dask-batch only makes sense with --mt-dask")
+        return None, None
+    if source.startswith("--") and not campaign:
+        raise pytest.UsageError("--mt-dask runs campaigns: give --mt-campaign too")
+    from pytest_metamorphic.core.campaign.cluster import check_address
+    from pytest_metamorphic.core.errors import InvalidArgument
+
+    try:
+        address = check_address(address)
+    except InvalidArgument as error:
+        raise pytest.UsageError(f"{source}: {error}") from None
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise pytest.UsageError(
+            f"{source}={address} needs Dask distributed: pip install 'pytest-metamorphic[dask]'"
+        ) from None
+    batch = None
+    if raw is not None:
+        try:
+            batch = int(raw)
+        except (TypeError, ValueError):
+            raise pytest.UsageError(f"{batch_source}={raw!r} must be an integer") from None
+        if batch < 1:
+            raise pytest.UsageError(f"{batch_source}={batch} must be >= 1")
+    return address, batch
 
 
 def _timeout_option(config: pytest.Config) -> float | None:
@@ -291,6 +350,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if config.stash[_REPLAYS]:
         _select_replayed(config, items)
     enabled = config.stash[_OPTIONS].campaign
+    if enabled and config.stash[_OPTIONS].dask:
+        _one_item_per_campaign(config, items)
     owners: dict[str, str] = {}  # campaign name -> the test defining it
     for item in items:
         if _is_metamorphic(item):
@@ -300,6 +361,19 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             _claim_campaign_name(owners, item)
             if not enabled:
                 item.add_marker(pytest.mark.skip(reason="campaign: run with --mt-campaign"))
+
+
+def _one_item_per_campaign(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """On a Dask cluster, shard 0's test runs the whole campaign: the cluster spreads the
+    sources, and the other shards' tests would have nothing left to do."""
+    dropped = [
+        item
+        for item in items
+        if _campaign_of(item) is not None and item.callspec.params.get("mt_shard", 0) != 0
+    ]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = [item for item in items if item not in set(dropped)]
 
 
 def _claim_campaign_name(owners: dict[str, str], item: pytest.Item) -> None:
@@ -364,44 +438,76 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
 
 
 def _run_campaign_shard(item: pytest.Item) -> None:
-    from pytest_metamorphic.core.campaign import read_campaign_log, run_campaign
-    from pytest_metamorphic.reports.progress import ProgressBar
+    from pytest_metamorphic.core.campaign import ShardLogs, run_campaign
 
     campaign, shards = _campaign_of(item)
     shard = item.callspec.params["mt_shard"]
     options = item.config.stash[_OPTIONS]
-    log = options.campaign_dir / _slug(campaign.name) / f"shard-{shard}-of-{shards}.jsonl"
-    bar = None
-    if not hasattr(item.config, "workerinput"):
-        reporter = item.config.pluginmanager.get_plugin("terminalreporter")
-        bar = ProgressBar.for_terminal(
-            reporter,
-            campaign.name,
-            shard=f"{shard + 1}/{shards}",
-            capture=item.config.pluginmanager.get_plugin("capturemanager"),
-        )
+    logs = ShardLogs(options.campaign_dir / _slug(campaign.name), shards)
+    # On a cluster this test runs every source, each logged in its own shard's file:
+    # the same logs as without it, so either can resume the other's run.
+    run = {"shard": shard, "shards": shards}
+    if options.dask:
+        run = {"cluster": _dask_client(item.config), "batch_size": options.dask_batch}
+    bar = _progress_bar(item, campaign.name, where=options.dask or f"{shard + 1}/{shards}")
     try:
-        item.stash[_CAMPAIGN_RESULT] = run_campaign(
+        result = run_campaign(
             campaign,
-            log=log,
+            log=logs,
             resume=options.resume,
-            shard=shard,
-            shards=shards,
             progress=bar.update if bar else None,
             timeout=options.timeout,
+            **run,
         )
     except BaseException:
         # Interrupted (Ctrl-C, a crash in the plugin): pytest makes no report for this
         # test, so the sources this shard finished would be missing from the partial
-        # report. They are in the log; merge them here, where the report is printed.
+        # report. They are in the logs; merge them here, where the report is printed.
         if not hasattr(item.config, "workerinput"):
-            _merge_campaign(
-                item.config, read_campaign_log(campaign, log, shard=shard, shards=shards)
-            )
+            _merge_campaign(item.config, _read_back(campaign, logs, run))
         raise
     finally:
         if bar:
             bar.close()
+    worker = getattr(item.config, "workerinput", {}).get("workerid", "main")
+    result.execution[-1]["pytest_worker"] = worker
+    item.stash[_CAMPAIGN_RESULT] = result
+
+
+def _read_back(campaign: Any, logs: Any, run: dict[str, Any]) -> Any:
+    from pytest_metamorphic.core.campaign import read_campaign_log
+
+    return read_campaign_log(campaign, logs, shard=run.get("shard", 0), shards=run.get("shards", 1))
+
+
+def _progress_bar(item: pytest.Item, name: str, *, where: str) -> Any:
+    if hasattr(item.config, "workerinput"):
+        return None
+    from pytest_metamorphic.reports.progress import ProgressBar
+
+    return ProgressBar.for_terminal(
+        item.config.pluginmanager.get_plugin("terminalreporter"),
+        name,
+        shard=where,
+        capture=item.config.pluginmanager.get_plugin("capturemanager"),
+    )
+
+
+def _dask_client(config: pytest.Config) -> Any:
+    """One connection (and for local:N one local cluster) for the whole session."""
+    client = config.stash.get(_DASK_CLIENT, None)
+    if client is None:
+        from pytest_metamorphic.core.campaign.cluster import ClusterError, connect
+
+        stack = contextlib.ExitStack()
+        try:
+            client = stack.enter_context(connect(config.stash[_OPTIONS].dask))
+        except ClusterError as error:
+            stack.close()
+            raise pytest.UsageError(f"--mt-dask: {error}") from None
+        config.stash[_DASK_CLIENT] = client
+        config.add_cleanup(stack.close)
+    return client
 
 
 def _merge_campaign(config: pytest.Config, shard: Any) -> None:

@@ -8,6 +8,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pytest_metamorphic.core.campaign import CampaignResult
 from pytest_metamorphic.core.intervals import wilson
@@ -15,6 +16,7 @@ from pytest_metamorphic.core.intervals import wilson
 __all__ = [
     "ChartColumn",
     "chart_columns",
+    "describe_execution",
     "format_table",
     "to_markdown",
     "write_chart",
@@ -96,6 +98,42 @@ def _status(result: CampaignResult) -> str:
     )
 
 
+def describe_execution(entries: list[dict[str, Any]]) -> str:
+    """How the sources ran: ``ran on a Dask cluster tcp://... (2 workers, 63 tasks, ...)``,
+    ``ran in 8 shards on pytest-xdist workers gw0, gw1``, ``ran in one process``."""
+    if not entries:
+        return "ran: nothing this session (every source read back from the logs)"
+    parts = []
+    for entry in (e for e in entries if e.get("engine") == "dask"):
+        lost = entry.get("workers_replaced", 0)
+        crashes = entry.get("worker_crashes", 0)
+        parts.append(
+            f"on the Dask cluster {entry.get('scheduler')} ({entry.get('workers')} workers, "
+            f"{entry.get('units')} tasks of {entry.get('batch_size')} sources, "
+            f"{entry.get('sources')} sources in {entry.get('seconds', 0):.1f} s"
+            + (f", {lost} worker(s) replaced" if lost else "")
+            + (f", {crashes} source(s) killed their worker" if crashes else "")
+            + ")"
+        )
+    local = [e for e in entries if e.get("engine") != "dask"]
+    if local:
+        shards = {tuple(e.get("shard", (0, 1))) for e in local}
+        workers = sorted({e["pytest_worker"] for e in local if e.get("pytest_worker")})
+        where = (
+            f"on pytest-xdist workers {', '.join(workers)}"
+            if any(w != "main" for w in workers)
+            else "in one process"
+        )
+        seconds = sum(e.get("seconds", 0) for e in local)
+        parts.append(
+            f"{where} ({len(shards)} shard(s), {sum(e.get('sources', 0) for e in local)} "
+            f"sources, {seconds:.1f} s of shard time)"
+        )
+    resumed = sum(e.get("resumed", 0) for e in entries)
+    suffix = f"; {resumed} sources read back from the logs" if resumed else ""
+    return "ran " + "; and ".join(parts) + suffix
+
+
 def _align(rows: list[list[str]]) -> list[str]:
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return ["  ".join(cell.rjust(widths[i]) for i, cell in enumerate(row)) for row in rows]
@@ -112,6 +150,7 @@ def format_table(result: CampaignResult) -> list[str]:
         lines.append(_SCOPE_NOTE)
     if result.source_crashes:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
+    lines.append(describe_execution(result.execution))
     if result.examples:
         shown = result.examples[:_SHOWN_EXAMPLES]
         lines.append(f"first violations ({len(shown)} of the {len(result.examples)} kept):")
@@ -143,6 +182,7 @@ def to_markdown(result: CampaignResult) -> str:
         parts.append(
             _markdown_table(["n", "category", "pairs", "fewer", "same", "more"], categories)
         )
+    parts += ["", describe_execution(result.execution)]
     if result.examples:
         parts += ["", "## First violations", ""]
         parts.extend(f"- {_example_line(example)}" for example in result.examples)

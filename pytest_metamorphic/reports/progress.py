@@ -26,16 +26,37 @@ class _Writer(Protocol):
     def write(self, content: str, *, flush: bool = False) -> None: ...
 
 
-def progress_text(name: str, done: int, total: int, elapsed: float, *, shard: str = "") -> str:
-    """`` name 2/8: 10/20 sources, 4 s, ~4 s left [##########----------]``.
+def progress_text(
+    name: str,
+    done: int,
+    total: int,
+    elapsed: float,
+    *,
+    shard: str = "",
+    in_flight: int = 0,
+    failed: int = 0,
+    rate: float | None = None,
+) -> str:
+    """`` name 2/8: 10/20 sources, 4 in flight, 1 failed, 2.5/s, 4 s, ~4 s left [###---]``.
 
-    The bar comes last, so a narrow line loses it first.
+    In flight and failed show only when non-zero, the rate only when given; the bar comes
+    last, so a narrow line loses it first.
     """
     filled = _BAR_WIDTH * done // total if total else _BAR_WIDTH
     bar = "#" * filled + "-" * (_BAR_WIDTH - filled)
-    left = f", ~{elapsed / done * (total - done):.0f} s left" if 0 < done < total else ""
+    if rate:
+        left = f", ~{(total - done) / rate:.0f} s left" if done < total else ""
+    else:
+        left = f", ~{elapsed / done * (total - done):.0f} s left" if 0 < done < total else ""
     where = f" {shard}" if shard else ""
-    return f" {name}{where}: {done}/{total} sources, {elapsed:.0f} s{left} [{bar}]"
+    details = "".join(
+        [
+            f", {in_flight} in flight" if in_flight else "",
+            f", {failed} failed" if failed else "",
+            f", {rate:.1f}/s" if rate else "",
+        ]
+    )
+    return f" {name}{where}: {done}/{total} sources{details}, {elapsed:.0f} s{left} [{bar}]"
 
 
 class ProgressBar:
@@ -77,11 +98,19 @@ class ProgressBar:
         used = len(_ESCAPES.sub("", line))
         return cls(_Uncaptured(writer, capture), width - used - 1, name, shard=shard)
 
-    def update(self, done: int, total: int) -> None:
+    def update(self, status: Any) -> None:
+        """Redraw for a :class:`~pytest_metamorphic.core.campaign.CampaignProgress`."""
         if self.room < _MIN_ROOM:
             return
         text = progress_text(
-            self.name, done, total, time.monotonic() - self.started, shard=self.shard
+            self.name,
+            status.done,
+            status.total,
+            time.monotonic() - self.started,
+            shard=self.shard,
+            in_flight=status.in_flight,
+            failed=status.failed,
+            rate=status.rate,
         )
         if len(text) > self.room:
             text = text[: self.room - 1] + "…"

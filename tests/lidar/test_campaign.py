@@ -72,7 +72,7 @@ def test_shards_merge_into_the_single_process_result() -> None:
     campaign = mr1_campaign(system_of("count_scaled_radius"), name="m", sources=6, sizes=(1000,))
     whole = run_campaign(campaign)
     parts = [run_campaign(campaign, shard=shard, shards=3) for shard in range(3)]
-    assert merge_results(parts).to_json() == whole.to_json()
+    assert merge_results(parts).outcome_json() == whole.outcome_json()
 
 
 def test_kitti_frames_are_sources_and_the_reference_holds_on_them() -> None:

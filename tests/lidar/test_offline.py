@@ -60,7 +60,7 @@ def test_offline_json_predictions_reproduce_the_online_report(tmp_path: Path) ->
     run_elsewhere(tmp_path / "dataset", tmp_path / "predictions", "json")
     predictions = OfflinePredictions(tmp_path / "dataset", tmp_path / "predictions", format="json")
     offline = run_campaign(offline_campaign(campaign, predictions))
-    assert offline.to_json() == online.to_json()
+    assert offline.outcome_json() == online.outcome_json()
     assert offline.sizes[1000].unjudged_changes > 0  # the whole-scene detector saw the noise
 
 

@@ -133,7 +133,7 @@ def test_metamorphic_tests_and_campaigns_drive_a_process(tmp_path: Path) -> None
     direct = run_campaign(
         mr1_campaign(WholeScenePerception(), name="p", frames=catalog, sources=2, sizes=(100,))
     )
-    assert result.to_json() == direct.to_json()
+    assert result.outcome_json() == direct.outcome_json()
     assert served.starts == 1
     served.close()
 

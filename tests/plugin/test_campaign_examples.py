@@ -55,4 +55,7 @@ def test_main_job_is_identical_under_xdist(paper_campaign: pytest.Pytester) -> N
         json.loads((paper_campaign.path / d / name / "report.json").read_text())
         for d in ("one", "two")
     ]
+    assert reports[0]["execution"] != reports[1]["execution"]  # one process, two workers
+    for report in reports:
+        del report["execution"]
     assert reports[0] == reports[1]

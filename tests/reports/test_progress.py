@@ -6,6 +6,7 @@ import io
 
 import pytest
 
+from pytest_metamorphic.core.campaign import CampaignProgress
 from pytest_metamorphic.reports.progress import ProgressBar, progress_text
 
 
@@ -42,7 +43,7 @@ def test_bar_redraws_in_place_and_erases_itself() -> None:
     screen = Screen("examples/test_campaign.py ..")
     bar = ProgressBar(screen, room=80, name="MR1")
     for done in (1, 10, 100):
-        bar.update(done, 100)
+        bar.update(CampaignProgress(done, 100))
         assert screen.text.startswith("examples/test_campaign.py .. MR1: ")
         assert f"{done}/100 sources" in screen.text
     bar.close()
@@ -52,10 +53,10 @@ def test_bar_redraws_in_place_and_erases_itself() -> None:
 
 def test_bar_never_wraps_and_skips_a_full_line() -> None:
     screen = Screen("x" * 70)
-    ProgressBar(screen, room=30, name="a long campaign name").update(3, 10)
+    ProgressBar(screen, room=30, name="a long campaign name").update(CampaignProgress(3, 10))
     assert len(screen.text) <= 70 + 30 and screen.text.endswith("…")
     full = Screen("x" * 79)
-    ProgressBar(full, room=5, name="MR1").update(3, 10)
+    ProgressBar(full, room=5, name="MR1").update(CampaignProgress(3, 10))
     assert full.text == "x" * 79
 
 
@@ -110,5 +111,11 @@ def test_writes_suspend_pytest_capture_and_width_ignores_colour() -> None:
 
     bar = ProgressBar.for_terminal(Reporter(), "MR1", capture=Capture())
     assert bar is not None and bar.room == 80 - len("examples/t.py ..") - 1
-    bar.update(1, 2)
+    bar.update(CampaignProgress(1, 2))
     assert events == ["suspend", "write", "resume"]
+
+
+def test_progress_text_shows_what_a_cluster_run_has_in_flight_failed_and_its_rate() -> None:
+    text = progress_text("MR1", 40, 100, 20.0, shard="local:2", in_flight=6, failed=1, rate=2.0)
+    assert text.startswith(" MR1 local:2: 40/100 sources, 6 in flight, 1 failed, 2.0/s, 20 s")
+    assert "~30 s left" in text  # the 60 sources left at this run's 2 per second

@@ -12,25 +12,36 @@ interrupted campaign loses at most the source in progress and resumes where it s
 
 The package's modules follow that story: :mod:`.spec` (what a campaign is),
 :mod:`.results` (tallies that merge exactly), :mod:`.log` (the JSONL log), :mod:`.run`
-(this process), :mod:`.cluster` (a Dask cluster), :mod:`.testing` (pytest tests).
+(this process), :mod:`.cluster` (a Dask cluster), :mod:`.system` (systems built once per
+process), :mod:`.testing` (pytest tests).
 """
 
-from pytest_metamorphic.core.campaign.log import read_campaign_log, shard_indices
+from pytest_metamorphic.core.campaign.log import (
+    LogFile,
+    ShardLogs,
+    read_campaign_log,
+    shard_indices,
+)
 from pytest_metamorphic.core.campaign.results import (
     CampaignResult,
     SizeCounts,
     merge_results,
     result_from_json,
 )
-from pytest_metamorphic.core.campaign.run import run_campaign
+from pytest_metamorphic.core.campaign.run import CampaignProgress, run_campaign
 from pytest_metamorphic.core.campaign.spec import Campaign, CampaignInput, campaign_inputs
+from pytest_metamorphic.core.campaign.system import SystemFactory
 from pytest_metamorphic.core.campaign.testing import campaign_test
 
 __all__ = [
     "Campaign",
     "CampaignInput",
+    "CampaignProgress",
     "CampaignResult",
+    "LogFile",
+    "ShardLogs",
     "SizeCounts",
+    "SystemFactory",
     "campaign_inputs",
     "campaign_test",
     "merge_results",

@@ -6,11 +6,13 @@ sources in progress; a log is read back to resume or to report a partial run.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Container, Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +20,17 @@ from pytest_metamorphic.core.campaign.results import CampaignResult, SizeCounts,
 from pytest_metamorphic.core.campaign.spec import Campaign
 from pytest_metamorphic.core.errors import InvalidArgument
 
-__all__ = ["open_log", "read_campaign_log", "read_log", "set_aside", "shard_indices"]
+__all__ = [
+    "LogFile",
+    "ShardLogs",
+    "as_logs",
+    "read_campaign_log",
+    "read_log",
+    "set_aside",
+    "shard_indices",
+]
+
+SYNC_SECONDS = 1.0
 
 
 def read_log(path: Path, header: dict[str, Any]) -> Iterator[dict[str, Any]]:
@@ -57,7 +69,7 @@ def set_aside(path: Path) -> None:
 
 def read_campaign_log(
     campaign: Campaign,
-    log: Path | str | None,
+    log: LogLike,
     *,
     shard: int = 0,
     shards: int = 1,
@@ -66,43 +78,209 @@ def read_campaign_log(
     """The result of the sources of one shard that ``log`` records as finished.
 
     Nothing runs: this is what an interrupted run had done (an empty result when the log
-    is absent or empty). Raises InvalidArgument when the log belongs to another campaign.
+    is absent or empty). ``log`` is one file or a :class:`ShardLogs` folder. Raises
+    InvalidArgument when the log belongs to another campaign.
     """
-    header = campaign.header()
-    result = CampaignResult(
-        header, {size: SizeCounts() for size in campaign.sizes}, keep_examples=keep_examples
-    )
-    path = None if log is None else Path(log)
-    if path is None or not path.exists() or not path.stat().st_size:
-        return result
     indices = shard_indices(campaign.sources, shard, shards)
-    for record in read_log(path, header):
-        if record["source"] in indices and record["source"] not in result.sources_done:
-            tally(result, record)
-    result._trim_examples()
-    return result
+    return as_logs(log).read(campaign, indices, keep_examples=keep_examples)
 
 
-@contextmanager
-def open_log(
-    path: Path | None, header: dict[str, Any]
-) -> Iterator[Callable[[dict[str, Any]], None]]:
-    """Append records to ``path``, each flushed and fsynced before the next source runs."""
-    if path is None:
-        yield lambda record: None
+def _empty_result(campaign: Campaign, keep_examples: int) -> CampaignResult:
+    return CampaignResult(
+        campaign.header(),
+        {size: SizeCounts() for size in campaign.sizes},
+        keep_examples=keep_examples,
+    )
+
+
+def _tally_file(
+    result: CampaignResult, path: Path, header: dict[str, Any], wanted: Container[int]
+) -> None:
+    if not path.exists() or not path.stat().st_size:
         return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fresh = not path.exists() or path.stat().st_size == 0
-    with path.open("a", encoding="utf-8") as handle:
+    for record in read_log(path, header):
+        if record["source"] in wanted and record["source"] not in result.sources_done:
+            tally(result, record)
+
+
+def _drop_cut_off_record(path: Path) -> None:
+    """Truncate a last line an interruption cut off (resuming redoes that source), so
+    the records appended after it stay one per line."""
+    if not path.exists():
+        return
+    with path.open("rb+") as handle:
+        size = handle.seek(0, os.SEEK_END)
+        if not size:
+            return
+        handle.seek(max(size - 1, 0))
+        if handle.read(1) == b"\n":
+            return
+        block = min(size, 1 << 16)
+        while True:
+            handle.seek(size - block)
+            data = handle.read(block)
+            cut = data.rfind(b"\n")
+            if cut >= 0:
+                handle.truncate(size - block + cut + 1)
+                return
+            if block == size:
+                handle.truncate(0)
+                return
+            block = min(size, block * 2)
+
+
+class _Writer:
+    """Appends records to one log: each flushed at once (a killed process loses nothing
+    written), fsynced at least every ``SYNC_SECONDS`` and on close (an OS crash loses at
+    most that much); a per-record fsync would cap a cluster's throughput at the disk's."""
+
+    def __init__(self, path: Path, header: dict[str, Any]) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        _drop_cut_off_record(path)
+        fresh = not path.exists() or path.stat().st_size == 0
+        self.handle = path.open("a", encoding="utf-8")
+        self.synced = time.monotonic()
+        if fresh:
+            self.write(header)
+            self.sync()
+
+    def write(self, record: dict[str, Any]) -> None:
+        self.handle.write(json.dumps(record, separators=(",", ":")) + "\n")
+        self.handle.flush()
+        if time.monotonic() - self.synced >= SYNC_SECONDS:
+            self.sync()
+
+    def sync(self) -> None:
+        os.fsync(self.handle.fileno())
+        self.synced = time.monotonic()
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self.sync()
+        self.handle.close()
+
+
+@dataclass(frozen=True)
+class LogFile:
+    """One JSONL log for all the sources a run is given."""
+
+    path: Path
+
+    def paths(self) -> list[Path]:
+        return [self.path]
+
+    def read(
+        self, campaign: Campaign, indices: Container[int], *, keep_examples: int = 20
+    ) -> CampaignResult:
+        result = _empty_result(campaign, keep_examples)
+        _tally_file(result, self.path, campaign.header(), indices)
+        result._trim_examples()
+        return result
+
+    def set_aside(self, indices: Iterable[int]) -> None:
+        if self.path.exists() and self.path.stat().st_size:
+            set_aside(self.path)
+
+    @contextmanager
+    def open(self, header: dict[str, Any]) -> Iterator[Callable[[dict[str, Any]], None]]:
+        writer = _Writer(self.path, header)
+        try:
+            yield writer.write
+        finally:
+            writer.close()
+
+
+@dataclass(frozen=True)
+class ShardLogs:
+    """One log per shard, ``folder/shard-K-of-N.jsonl``; source ``i`` goes to shard
+    ``i % shards``.
+
+    The pytest plugin's layout, whichever engine ran the sources (pytest-xdist shards or
+    a Dask cluster), so a run interrupted on one resumes on the other.
+    """
+
+    folder: Path
+    shards: int
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "folder", Path(self.folder))
+        if isinstance(self.shards, bool) or not isinstance(self.shards, int) or self.shards < 1:
+            raise InvalidArgument(f"shards={self.shards!r} must be an int >= 1")
+
+    def path(self, shard: int) -> Path:
+        return self.folder / f"shard-{shard}-of-{self.shards}.jsonl"
+
+    def paths(self) -> list[Path]:
+        return [self.path(shard) for shard in range(self.shards)]
+
+    def read(
+        self, campaign: Campaign, indices: Container[int], *, keep_examples: int = 20
+    ) -> CampaignResult:
+        result = _empty_result(campaign, keep_examples)
+        indices = indices if isinstance(indices, (range, set, frozenset)) else set(indices)
+        for shard in range(self.shards):
+            mine = shard_indices(campaign.sources, shard, self.shards)
+            wanted = [index for index in mine if index in indices]
+            if wanted:
+                _tally_file(result, self.path(shard), campaign.header(), set(wanted))
+        result._trim_examples()
+        return result
+
+    def set_aside(self, indices: Iterable[int]) -> None:
+        """Rename aside the logs of the shards holding ``indices`` (another shard's log
+        may belong to a run going on beside this one)."""
+        shards = {index % self.shards for index in indices}
+        for shard in sorted(shards):
+            path = self.path(shard)
+            if path.exists() and path.stat().st_size:
+                set_aside(path)
+
+    @contextmanager
+    def open(self, header: dict[str, Any]) -> Iterator[Callable[[dict[str, Any]], None]]:
+        writers: dict[int, _Writer] = {}
 
         def write(record: dict[str, Any]) -> None:
-            handle.write(json.dumps(record, separators=(",", ":")) + "\n")
-            handle.flush()
-            os.fsync(handle.fileno())
+            shard = record["source"] % self.shards
+            if shard not in writers:
+                writers[shard] = _Writer(self.path(shard), header)
+            writers[shard].write(record)
 
-        if fresh:
-            write(header)
-        yield write
+        try:
+            yield write
+        finally:
+            for writer in writers.values():
+                writer.close()
+
+
+class _NoLog:
+    def paths(self) -> list[Path]:
+        return []
+
+    def read(
+        self, campaign: Campaign, indices: Container[int], *, keep_examples: int = 20
+    ) -> CampaignResult:
+        return _empty_result(campaign, keep_examples)
+
+    def set_aside(self, indices: Iterable[int]) -> None:
+        pass
+
+    @contextmanager
+    def open(self, header: dict[str, Any]) -> Iterator[Callable[[dict[str, Any]], None]]:
+        yield lambda record: None
+
+
+LogLike = Path | str | os.PathLike | LogFile | ShardLogs | None
+
+
+def as_logs(log: LogLike) -> LogFile | ShardLogs | _NoLog:
+    """Normalise a ``log=`` argument: a path, a :class:`ShardLogs`, or None."""
+    if log is None:
+        return _NoLog()
+    if isinstance(log, (LogFile, ShardLogs)):
+        return log
+    if isinstance(log, (str, os.PathLike)):
+        return LogFile(Path(log))
+    raise InvalidArgument(f"log={log!r} must be a path, a ShardLogs or None")
 
 
 def shard_indices(sources: int, shard: int, shards: int) -> range:

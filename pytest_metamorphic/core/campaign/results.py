@@ -69,6 +69,9 @@ class CampaignResult:
     source_crashes: int = 0
     examples: list[dict[str, Any]] = field(default_factory=list)
     keep_examples: int = 20
+    # How the sources were run (engine, workers, seconds): one entry per run or shard.
+    # Reported, never compared: the outcome is the same whichever engine ran it.
+    execution: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
@@ -91,6 +94,7 @@ class CampaignResult:
         self.sut_calls += other.sut_calls
         self.source_crashes += other.source_crashes
         self.examples.extend(other.examples)
+        self.execution.extend(other.execution)
         self._trim_examples()
 
     def _trim_examples(self) -> None:
@@ -98,6 +102,12 @@ class CampaignResult:
         # way the sources were split over shards.
         self.examples.sort(key=lambda e: (e["source"], e["size"], e["followup"]))
         del self.examples[self.keep_examples :]
+
+    def outcome_json(self) -> dict[str, Any]:
+        """:meth:`to_json` without how it ran: equal for any split, engine or resume."""
+        data = self.to_json()
+        del data["execution"]
+        return data
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -119,6 +129,7 @@ class CampaignResult:
                 for size, counts in sorted(self.sizes.items())
             },
             "examples": self.examples,
+            "execution": self.execution,
         }
 
 
@@ -135,6 +146,7 @@ def result_from_json(data: dict[str, Any]) -> CampaignResult:
         source_crashes=data["source_crashes"],
         examples=list(data["examples"]),
         keep_examples=max(20, len(data["examples"])),
+        execution=list(data.get("execution", [])),
     )
 
 

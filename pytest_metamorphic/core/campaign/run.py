@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from pathlib import Path
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
-from pytest_metamorphic.core.campaign.log import (
-    open_log,
-    read_campaign_log,
-    set_aside,
-    shard_indices,
-)
+from pytest_metamorphic.core.campaign.log import LogLike, as_logs, shard_indices
 from pytest_metamorphic.core.campaign.results import CampaignResult, tally
 from pytest_metamorphic.core.campaign.spec import Campaign, draw_followup
 from pytest_metamorphic.core.comparison import describe_value
@@ -19,7 +16,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, unjudged_changes
 from pytest_metamorphic.core.timeout import call_with_timeout, check_timeout
 
-__all__ = ["run_campaign", "run_source"]
+__all__ = ["CampaignProgress", "InProcess", "run_campaign", "run_source"]
 
 
 def _count(elements: Any, category: Callable[[Any], str] | None) -> tuple[int, dict[str, int]]:
@@ -93,24 +90,62 @@ def run_source(campaign: Campaign, index: int, timeout: float | None = None) -> 
     return record
 
 
+@dataclass(frozen=True)
+class CampaignProgress:
+    """Where a running campaign stands, given to ``run_campaign(progress=...)``."""
+
+    done: int  # sources finished, those read back from the log included
+    total: int  # sources of this run (of its shard)
+    in_flight: int = 0  # sent to workers and not back yet (cluster runs)
+    failed: int = 0  # finished as a crash: of the system on the source, or of its worker
+    ran: int = 0  # finished by this run
+    elapsed: float = 0.0  # seconds since this run started
+
+    @property
+    def rate(self) -> float:
+        """Sources per second finished by this run."""
+        return self.ran / self.elapsed if self.elapsed > 0 else 0.0
+
+
+class InProcess:
+    """Runs the sources here, one after another."""
+
+    def describe(self) -> dict[str, Any]:
+        return {"engine": "process", "workers": 1}
+
+    @contextmanager
+    def session(self, campaign: Campaign, timeout: float | None) -> Iterator[InProcess]:
+        self.campaign, self.timeout = campaign, timeout
+        yield self
+
+    def records(self, todo: list[int]) -> Iterator[tuple[dict[str, Any], int]]:
+        """Each finished source's record, with how many sources are still in flight."""
+        for index in todo:
+            yield run_source(self.campaign, index, self.timeout), 0
+
+
 def run_campaign(
     campaign: Campaign,
     *,
-    log: Path | str | None = None,
+    log: LogLike = None,
     resume: bool = False,
     shard: int = 0,
     shards: int = 1,
     keep_examples: int = 20,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[CampaignProgress], None] | None = None,
     timeout: float | None = None,
+    cluster: Any = None,
+    batch_size: int | None = None,
 ) -> CampaignResult:
     """Run (a shard of) a campaign and return its aggregated result.
 
     Parameters
     ----------
-    log : path, optional
+    log : path or ShardLogs, optional
         JSONL file: a header line, then one record per finished source, flushed as it
-        comes. An existing log is renamed aside unless ``resume`` is true.
+        comes; or a :class:`~pytest_metamorphic.core.campaign.log.ShardLogs` folder (one
+        file per shard, the pytest plugin's layout). An existing log is renamed aside
+        unless ``resume`` is true.
     resume : bool
         Continue the run recorded in ``log``: finished sources are read back, not redone.
     shard, shards : int
@@ -118,31 +153,65 @@ def run_campaign(
         (:meth:`CampaignResult.merge`) into exactly the one-process result.
     keep_examples : int
         How many violating pairs to keep in the result for reports.
-    progress : callable(done, total), optional
+    progress : callable(CampaignProgress), optional
+        Called after each finished source.
     timeout : float, optional
         Seconds one call of the system may take; a call past it is recorded as a crash
         of that pair (or source), ``SystemTimeout: ...``, and the campaign goes on.
+    cluster : str or distributed.Client, optional
+        Run the sources on a Dask cluster (:mod:`pytest_metamorphic.core.campaign.cluster`):
+        a scheduler address, ``"local:N"`` for a local cluster of N worker processes, or
+        a connected client. The result is identical to a run in this process.
+    batch_size : int, optional
+        Sources per cluster task; by default guided (several sources per task early on,
+        to amortise the engine's ~1 ms per task, one per task towards the end).
     """
     timeout = check_timeout(timeout)
     if not isinstance(campaign, Campaign):
         raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
-    header = campaign.header()
+    logs = as_logs(log)
     indices = shard_indices(campaign.sources, shard, shards)
-    path = None if log is None else Path(log)
-    if path is not None and path.exists() and path.stat().st_size and not resume:
-        set_aside(path)
-    result = read_campaign_log(
-        campaign, path, shard=shard, shards=shards, keep_examples=keep_examples
+    if cluster is None:
+        if batch_size is not None:
+            raise InvalidArgument("batch_size= is for cluster runs; give cluster= too")
+        engine: Any = InProcess()
+    else:
+        from pytest_metamorphic.core.campaign.cluster import DaskEngine
+
+        engine = DaskEngine(cluster, batch_size=batch_size)
+    # The engine checks the campaign (can it be sent?) before the log is touched.
+    with engine.session(campaign, timeout) as session:
+        if not resume:
+            logs.set_aside(indices)
+        result = logs.read(campaign, indices, keep_examples=keep_examples)
+        resumed = len(result.sources_done)
+        todo = [index for index in indices if index not in result.sources_done]
+        started = time.monotonic()
+        ran = failed = 0
+        with logs.open(campaign.header()) as write:
+            for record, in_flight in session.records(todo):
+                write(record)
+                tally(result, record)
+                result._trim_examples()
+                ran += 1
+                failed += "crash" in record
+                if progress:
+                    progress(
+                        CampaignProgress(
+                            resumed + ran,
+                            len(indices),
+                            in_flight,
+                            failed,
+                            ran,
+                            time.monotonic() - started,
+                        )
+                    )
+        entry = session.describe()
+    entry.update(
+        shard=[shard, shards],
+        sources=ran,
+        resumed=resumed,
+        seconds=round(time.monotonic() - started, 3),
     )
-    done = set(result.sources_done)
-    todo = [index for index in indices if index not in done]
-    with open_log(path, header) as write:
-        for count, index in enumerate(todo, start=1):
-            record = run_source(campaign, index, timeout)
-            write(record)
-            tally(result, record)
-            result._trim_examples()
-            if progress:
-                progress(len(done) + count, len(indices))
-    result._trim_examples()
+    result.execution.append(entry)
     return result

@@ -13,6 +13,7 @@ import functools
 import glob
 import os
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -102,7 +103,24 @@ class FrameCatalog:
                     f"labels=True but {len(missing)} source(s) have no KITTI label_2 + calib "
                     f"files, e.g. {_name(missing[0])}"
                 )
+        self.cache_size = cache_size
         self._cached = functools.lru_cache(maxsize=cache_size)(self._load)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # A catalog travels (to pytest-xdist or Dask workers) as its index: absolute paths,
+        # bag message times and options, never loaded frames; each process loads its own.
+        state = {key: value for key, value in self.__dict__.items() if key != "_cached"}
+        state["sources"] = [
+            replace(source, path=source.path.absolute())
+            if isinstance(source, BagIndex)
+            else source.absolute()
+            for source in self.sources
+        ]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._cached = functools.lru_cache(maxsize=self.cache_size)(self._load)
 
     def load(self, index: int) -> Frame:
         """Frame ``index`` (0-based, over all sources in order)."""

@@ -1,0 +1,342 @@
+"""Running a campaign on a Dask cluster (the optional ``dask`` extra).
+
+The unit of work is one source, or ``batch_size`` sources, with all their sizes and
+follow-ups: the same :func:`~pytest_metamorphic.core.campaign.run.run_source` a process
+runs, so every record, and therefore the merged result, is identical to a one-process run
+with the same seed. Only the controller writes the log, as results come back: a worker
+that dies loses nothing (the scheduler runs its units again) and counts nothing twice
+(each unit's result is taken once).
+
+What travels, and where it must be:
+
+- the campaign is pickled once (cloudpickle) and broadcast to every worker; its system is
+  built there, once per worker, when it is a
+  :class:`~pytest_metamorphic.core.campaign.system.SystemFactory`;
+- recorded frames travel by reference (a ``FrameCatalog`` pickles as its paths and
+  options): every worker must see the data at the same absolute path;
+- every worker needs pytest-metamorphic and the module that defines the campaign's
+  functions importable (same checkout on a shared path, or installed).
+
+Before anything runs, the campaign is checked: a part that cannot be pickled is named,
+and every worker loads the campaign and its first source, so a missing module or data
+path is reported at once instead of as a crash of every source.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import pickle
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from pytest_metamorphic.core.campaign.run import run_source
+from pytest_metamorphic.core.campaign.spec import Campaign
+from pytest_metamorphic.core.errors import InvalidArgument, MetamorphicError
+
+__all__ = [
+    "ClusterError",
+    "DaskEngine",
+    "check_address",
+    "check_sendable",
+    "connect",
+]
+
+LOCAL_PREFIX = "local:"
+CONNECT_TIMEOUT = 30.0
+LARGE_PART_BYTES = 16 * 2**20
+MAX_AUTO_BATCH = 8
+GUIDED_SHARE = 4  # a guided task takes at most 1/(4 x workers) of what is left
+_PARTS = ("source", "followup", "system", "relation", "category", "counted")
+_INSTALL = "pip install 'pytest-metamorphic[dask]'"
+
+
+class ClusterError(MetamorphicError):
+    """The cluster cannot run the campaign (unreachable, or workers that cannot load it)."""
+
+
+def check_address(address: str) -> str:
+    """Validate ``"local:N"`` or a scheduler address; return it stripped."""
+    if not isinstance(address, str) or not address.strip():
+        raise InvalidArgument(
+            f"cluster={address!r} must be a Dask scheduler address (tcp://host:8786) or "
+            "'local:N' for a local cluster of N worker processes"
+        )
+    address = address.strip()
+    if address.startswith(LOCAL_PREFIX):
+        count = address[len(LOCAL_PREFIX) :]
+        if not count.isdigit() or int(count) < 1:
+            raise InvalidArgument(
+                f"cluster={address!r}: N in 'local:N' must be a number of workers >= 1"
+            )
+    elif ":" not in address:
+        raise InvalidArgument(
+            f"cluster={address!r} is neither 'local:N' nor a scheduler address with a port "
+            "(e.g. tcp://10.0.0.5:8786)"
+        )
+    return address
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise InvalidArgument(
+            f"running a campaign on a Dask cluster needs Dask distributed: {_INSTALL}"
+        ) from None
+    return distributed
+
+
+@contextmanager
+def connect(cluster: Any, *, timeout: float = CONNECT_TIMEOUT) -> Iterator[Any]:
+    """A ``distributed.Client`` for ``cluster``: an address, ``"local:N"`` or a client.
+
+    A local cluster (N single-threaded worker processes, each restarted by its nanny if
+    it dies) and the connection are closed on exit; a client given is left open.
+    """
+    distributed = _distributed()
+    if isinstance(cluster, distributed.Client):
+        yield cluster
+        return
+    address = check_address(cluster)
+    if address.startswith(LOCAL_PREFIX):
+        workers = int(address[len(LOCAL_PREFIX) :])
+        with (
+            distributed.LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            ) as local,
+            distributed.Client(local) as client,
+        ):
+            yield client
+        return
+    try:
+        client = distributed.Client(address, timeout=timeout)
+    except (OSError, TimeoutError) as error:
+        raise ClusterError(
+            f"could not reach the Dask scheduler at {address} within {timeout:.0f} s "
+            f"({type(error).__name__}: {error}); start it with `dask scheduler` and workers "
+            f"with `dask worker {address}`"
+        ) from None
+    with client:
+        yield client
+
+
+def check_sendable(campaign: Campaign) -> bytes:
+    """The campaign pickled as Dask sends it; a part that cannot be sent is named.
+
+    Raises InvalidArgument naming the part (its system, source function, ...) and what
+    to do instead; warns when a part is large (it is copied to every worker).
+    """
+    from distributed.protocol.pickle import dumps
+
+    for part in _PARTS:
+        value = getattr(campaign, part)
+        if value is None:
+            continue
+        try:
+            size = len(dumps(value))
+        except Exception as error:
+            raise InvalidArgument(
+                f"campaign {campaign.name!r}: its {part} {value!r} cannot be sent to Dask "
+                f"workers ({type(error).__name__}: {error}). Give the campaign what builds "
+                "it instead: a module-level function or class, or "
+                "SystemFactory(build, *args) for a system that holds a model, a process or "
+                "an open file (each worker builds its own, once)."
+            ) from None
+        if size > LARGE_PART_BYTES:
+            import warnings
+
+            warnings.warn(
+                f"campaign {campaign.name!r}: its {part} pickles to {size / 2**20:.0f} MiB, "
+                "copied to every worker; hold data by reference (a FrameCatalog, a path) "
+                "and load it on the workers",
+                stacklevel=3,
+            )
+    return dumps(campaign)
+
+
+def _preflight(payload: bytes, index: int) -> str:
+    """On a worker: can it load the campaign and source ``index``?"""
+    campaign = pickle.loads(payload)
+    campaign.source(campaign.source_rng(index), index)
+    return "ok"
+
+
+def _run_unit(campaign: Campaign, indices: list[int], timeout: float | None) -> dict[str, Any]:
+    """On a worker: the records of some sources, and which worker ran them."""
+    from distributed import get_worker
+
+    records = [run_source(campaign, index, timeout) for index in indices]
+    return {"worker": get_worker().address, "records": records}
+
+
+class DaskEngine:
+    """Runs a campaign's sources as Dask tasks; see the module's documentation.
+
+    Parameters
+    ----------
+    cluster : str or distributed.Client
+        A scheduler address, ``"local:N"``, or a connected client (left open).
+    batch_size : int, optional
+        Sources per task; by default guided (up to ``MAX_AUTO_BATCH``, fewer towards the
+        end).
+    """
+
+    def __init__(self, cluster: Any, *, batch_size: int | None = None) -> None:
+        if batch_size is not None and (
+            isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1
+        ):
+            raise InvalidArgument(f"batch_size={batch_size!r} must be None or an int >= 1")
+        distributed = _distributed()
+        if not isinstance(cluster, distributed.Client):
+            check_address(cluster)
+        self.cluster = cluster
+        self.batch_size = batch_size
+        self.units: dict[str, int] = {}  # worker address -> units it returned
+        self.retried = 0
+        self.worker_crashes = 0
+        self.workers_seen: set[str] = set()
+
+    @contextmanager
+    def session(self, campaign: Campaign, timeout: float | None) -> Iterator[DaskEngine]:
+        payload = check_sendable(campaign)
+        with connect(self.cluster) as client:
+            self.client, self.campaign, self.timeout = client, campaign, timeout
+            self._preflight(payload)
+            # Broadcast once: tasks share each worker's copy (and the system built in it).
+            self.shared = client.scatter(campaign, broadcast=True, hash=False)
+            try:
+                yield self
+            finally:
+                with contextlib.suppress(Exception):
+                    client.cancel([self.shared])
+
+    def _preflight(self, payload: bytes) -> None:
+        try:
+            self.client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+        except TimeoutError:
+            raise ClusterError(
+                f"the Dask scheduler {self.client.scheduler.address} has no workers after "
+                f"{CONNECT_TIMEOUT:.0f} s; start some with `dask worker ADDRESS`"
+            ) from None
+        answers = self.client.run(_preflight, payload, 0, on_error="return")
+        broken = {w: a for w, a in answers.items() if isinstance(a, BaseException)}
+        self.workers_seen = set(answers)
+        if broken:
+            worker, error = next(iter(sorted(broken.items())))
+            raise ClusterError(
+                f"{len(broken)} of {len(answers)} Dask worker(s) cannot run campaign "
+                f"{self.campaign.name!r}; {worker}: {type(error).__name__}: {error}. Every "
+                "worker needs pytest-metamorphic, the module defining the campaign's "
+                "functions importable, and the data at the same path (README: running on "
+                "a cluster)."
+            )
+
+    def describe(self) -> dict[str, Any]:
+        workers = self.workers_seen | set(self.units)
+        return {
+            "engine": "dask",
+            "scheduler": self.client.scheduler.address,
+            "workers": len(self.workers_seen),
+            "workers_used": len(self.units),
+            "workers_replaced": len(workers - set(self._current_workers())),
+            "batch_size": self.batch_size or "guided",
+            "units": sum(self.units.values()),
+            "units_per_worker": dict(sorted(self.units.items())),
+            "units_retried": self.retried,
+            "worker_crashes": self.worker_crashes,
+        }
+
+    def _current_workers(self) -> list[str]:
+        try:
+            return list(self.client.scheduler_info()["workers"])
+        except Exception:
+            return []
+
+    def records(self, todo: list[int]) -> Iterator[tuple[dict[str, Any], int]]:
+        """Each finished source's record as it comes back, with the sources in flight."""
+        distributed = _distributed()
+        pending: dict[Any, list[int]] = {}
+        for batch in self._batches(todo):
+            pending[self._submit(batch)] = batch
+        in_flight = len(todo)
+        finished = distributed.as_completed(list(pending))
+        try:
+            for future in finished:
+                batch = pending.pop(future)
+                records, resubmit = self._collect(future, batch, distributed)
+                for unit in resubmit:
+                    retry = self._submit(unit)
+                    pending[retry] = unit
+                    finished.add(retry)
+                for record in records:
+                    in_flight -= 1
+                    yield record, in_flight
+        finally:
+            # Interrupted (Ctrl-C) or failed: stop the cluster's work on this campaign;
+            # what came back is already in the log.
+            if pending:
+                with contextlib.suppress(Exception):
+                    self.client.cancel(list(pending))
+
+    def _batches(self, todo: list[int]) -> Iterator[list[int]]:
+        """``batch_size`` sources per task; by default guided: a task costs the engine about
+        a millisecond, so early tasks take up to ``MAX_AUTO_BATCH`` sources, and the sizes
+        shrink towards one as the end nears, so no worker is left with a long last task."""
+        workers = max(len(self.workers_seen), 1)
+        start = 0
+        while start < len(todo):
+            remaining = len(todo) - start
+            size = self.batch_size or min(
+                MAX_AUTO_BATCH, max(1, -(-remaining // (GUIDED_SHARE * workers)))
+            )
+            yield todo[start : start + size]
+            start += size
+
+    def _submit(self, batch: list[int]) -> Any:
+        return self.client.submit(
+            _run_unit,
+            self.shared,
+            batch,
+            self.timeout,
+            key=f"mt-{self.campaign.name}-{batch[0]}-{time.monotonic_ns()}",
+            pure=False,
+        )
+
+    def _collect(
+        self, future: Any, batch: list[int], distributed: Any
+    ) -> tuple[list[dict[str, Any]], list[list[int]]]:
+        """(records, batches to run again) for one finished task."""
+        if future.status == "finished":
+            answer = future.result()
+            self.units[answer["worker"]] = self.units.get(answer["worker"], 0) + 1
+            return answer["records"], []
+        error = future.exception()
+        if isinstance(error, distributed.KilledWorker):
+            if len(batch) > 1:
+                # One source may be what kills the worker: run each on its own.
+                self.retried += 1
+                return [], [[index] for index in batch]
+            self.worker_crashes += 1
+            return [_worker_died(batch[0], error)], []
+        raise ClusterError(
+            f"campaign {self.campaign.name!r}, sources {batch}: the task failed on the "
+            f"cluster with {type(error).__name__}: {error}"
+        ) from error
+
+
+def _worker_died(index: int, error: BaseException) -> dict[str, Any]:
+    """The record of a source whose worker died every time it ran it: a crash, as any."""
+    return {
+        "source": index,
+        "pairs": [],
+        "sut_calls": 0,
+        "crash": f"WorkerDied: the Dask worker running source {index} died each time it "
+        f"was tried ({type(error).__name__}: {error})",
+    }
