@@ -5,12 +5,15 @@ follow-ups: the same :func:`~pytest_metamorphic.core.campaign.run.run_source` a 
 runs, so every record, and therefore the merged result, is identical to a one-process run
 with the same seed. Only the controller writes the log, as results come back: a worker
 that dies loses nothing (the scheduler runs its units again) and counts nothing twice
-(each unit's result is taken once).
+(each unit's result is taken once). A source whose task kills its worker every time
+(a segfaulting detector) is recorded as a crash of that source, once it has killed
+workers while running alone on the cluster, and the campaign goes on.
 
 What travels, and where it must be:
 
-- the campaign is pickled once (cloudpickle) and broadcast to every worker; its system is
-  built there, once per worker, when it is a
+- the campaign is pickled once (cloudpickle) and installed on every worker by a worker
+  plugin (workers that join or restart later get it too); its system is built there,
+  once per worker, when it is a
   :class:`~pytest_metamorphic.core.campaign.system.SystemFactory`;
 - recorded frames travel by reference (a ``FrameCatalog`` pickles as its paths and
   options): every worker must see the data at the same absolute path;
@@ -26,13 +29,12 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import pickle
 import time
+import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from pytest_metamorphic.core.campaign.run import run_source
 from pytest_metamorphic.core.campaign.spec import Campaign
 from pytest_metamorphic.core.errors import InvalidArgument, MetamorphicError
 
@@ -108,7 +110,7 @@ def connect(cluster: Any, *, timeout: float = CONNECT_TIMEOUT) -> Iterator[Any]:
                 n_workers=workers,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # a free port: never clash with a running cluster
                 silence_logs=logging.ERROR,
             ) as local,
             distributed.Client(local) as client,
@@ -161,21 +163,6 @@ def check_sendable(campaign: Campaign) -> bytes:
     return dumps(campaign)
 
 
-def _preflight(payload: bytes, index: int) -> str:
-    """On a worker: can it load the campaign and source ``index``?"""
-    campaign = pickle.loads(payload)
-    campaign.source(campaign.source_rng(index), index)
-    return "ok"
-
-
-def _run_unit(campaign: Campaign, indices: list[int], timeout: float | None) -> dict[str, Any]:
-    """On a worker: the records of some sources, and which worker ran them."""
-    from distributed import get_worker
-
-    records = [run_source(campaign, index, timeout) for index in indices]
-    return {"worker": get_worker().address, "records": records}
-
-
 class DaskEngine:
     """Runs a campaign's sources as Dask tasks; see the module's documentation.
 
@@ -207,15 +194,19 @@ class DaskEngine:
     def session(self, campaign: Campaign, timeout: float | None) -> Iterator[DaskEngine]:
         payload = check_sendable(campaign)
         with connect(self.cluster) as client:
+            from pytest_metamorphic.core.campaign import _worker
+
             self.client, self.campaign, self.timeout = client, campaign, timeout
             self._preflight(payload)
-            # Broadcast once: tasks share each worker's copy (and the system built in it).
-            self.shared = client.scatter(campaign, broadcast=True, hash=False)
+            # Sent once, installed on every worker (restarted ones too); tasks carry only
+            # its token, and share the worker's copy and the system built in it.
+            self.token = f"pytest-metamorphic-{uuid.uuid4().hex}"
+            client.register_plugin(_worker.CampaignPlugin(self.token, payload))
             try:
                 yield self
             finally:
                 with contextlib.suppress(Exception):
-                    client.cancel([self.shared])
+                    client.unregister_worker_plugin(self.token)
 
     def _preflight(self, payload: bytes) -> None:
         try:
@@ -225,7 +216,9 @@ class DaskEngine:
                 f"the Dask scheduler {self.client.scheduler.address} has no workers after "
                 f"{CONNECT_TIMEOUT:.0f} s; start some with `dask worker ADDRESS`"
             ) from None
-        answers = self.client.run(_preflight, payload, 0, on_error="return")
+        from pytest_metamorphic.core.campaign import _worker
+
+        answers = self.client.run(_worker.preflight, payload, 0, on_error="return")
         broken = {w: a for w, a in answers.items() if isinstance(a, BaseException)}
         self.workers_seen = set(answers)
         if broken:
@@ -260,24 +253,46 @@ class DaskEngine:
             return []
 
     def records(self, todo: list[int]) -> Iterator[tuple[dict[str, Any], int]]:
-        """Each finished source's record as it comes back, with the sources in flight."""
+        """Each finished source's record as it comes back, with the sources in flight.
+
+        Sources of tasks Dask gave up on (KilledWorker) are suspects: Dask blames every
+        task a dying worker held, queued ones too, so each suspect is run again at the
+        end, alone on the cluster, where only a source that kills its worker itself
+        fails again; that one is recorded as a crash.
+        """
         distributed = _distributed()
         pending: dict[Any, list[int]] = {}
-        for batch in self._batches(todo):
-            pending[self._submit(batch)] = batch
+        suspects: list[int] = []
         in_flight = len(todo)
-        finished = distributed.as_completed(list(pending))
         try:
+            for batch in self._batches(todo):
+                pending[self._submit(batch)] = batch
+            finished = distributed.as_completed(list(pending))
             for future in finished:
                 batch = pending.pop(future)
-                records, resubmit = self._collect(future, batch, distributed)
-                for unit in resubmit:
-                    retry = self._submit(unit)
-                    pending[retry] = unit
-                    finished.add(retry)
+                records, again = self._collect(future, batch, distributed)
+                if len(again) > 1:
+                    # One source may be what kills the worker: run each on its own.
+                    for index in again:
+                        retry = self._submit([index])
+                        pending[retry] = [index]
+                        finished.add(retry)
+                else:
+                    suspects += again
                 for record in records:
                     in_flight -= 1
                     yield record, in_flight
+            for index in suspects:
+                future = self._submit([index])
+                pending[future] = [index]
+                distributed.wait(future)
+                del pending[future]
+                records, again = self._collect(future, [index], distributed)
+                if again:
+                    self.worker_crashes += 1
+                    records = [_worker_died(index, future.exception())]
+                in_flight -= 1
+                yield records[0], in_flight
         finally:
             # Interrupted (Ctrl-C) or failed: stop the cluster's work on this campaign;
             # what came back is already in the log.
@@ -300,9 +315,11 @@ class DaskEngine:
             start += size
 
     def _submit(self, batch: list[int]) -> Any:
+        from pytest_metamorphic.core.campaign import _worker
+
         return self.client.submit(
-            _run_unit,
-            self.shared,
+            _worker.run_unit,
+            self.token,
             batch,
             self.timeout,
             key=f"mt-{self.campaign.name}-{batch[0]}-{time.monotonic_ns()}",
@@ -311,20 +328,16 @@ class DaskEngine:
 
     def _collect(
         self, future: Any, batch: list[int], distributed: Any
-    ) -> tuple[list[dict[str, Any]], list[list[int]]]:
-        """(records, batches to run again) for one finished task."""
+    ) -> tuple[list[dict[str, Any]], list[int]]:
+        """(records, sources to run again) for one finished task."""
         if future.status == "finished":
             answer = future.result()
             self.units[answer["worker"]] = self.units.get(answer["worker"], 0) + 1
             return answer["records"], []
         error = future.exception()
         if isinstance(error, distributed.KilledWorker):
-            if len(batch) > 1:
-                # One source may be what kills the worker: run each on its own.
-                self.retried += 1
-                return [], [[index] for index in batch]
-            self.worker_crashes += 1
-            return [_worker_died(batch[0], error)], []
+            self.retried += 1
+            return [], list(batch)
         raise ClusterError(
             f"campaign {self.campaign.name!r}, sources {batch}: the task failed on the "
             f"cluster with {type(error).__name__}: {error}"
