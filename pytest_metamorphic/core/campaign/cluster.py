@@ -47,7 +47,7 @@ __all__ = [
 ]
 
 LOCAL_PREFIX = "local:"
-CONNECT_TIMEOUT = 30.0
+WORKERS_TIMEOUT = 30.0
 LARGE_PART_BYTES = 16 * 2**20
 MAX_AUTO_BATCH = 8
 GUIDED_SHARE = 4  # a guided task takes at most 1/(4 x workers) of what is left
@@ -92,11 +92,13 @@ def _distributed() -> Any:
 
 
 @contextmanager
-def connect(cluster: Any, *, timeout: float = CONNECT_TIMEOUT) -> Iterator[Any]:
+def connect(cluster: Any, *, timeout: float | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for ``cluster``: an address, ``"local:N"`` or a client.
 
     A local cluster (N single-threaded worker processes, each restarted by its nanny if
     it dies) and the connection are closed on exit; a client given is left open.
+    ``timeout`` defaults to Dask's ``distributed.comm.timeouts.connect`` (30 s unless
+    configured, e.g. ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=5``).
     """
     distributed = _distributed()
     if isinstance(cluster, distributed.Client):
@@ -117,6 +119,10 @@ def connect(cluster: Any, *, timeout: float = CONNECT_TIMEOUT) -> Iterator[Any]:
         ):
             yield client
         return
+    if timeout is None:
+        import dask
+
+        timeout = _seconds(dask.config.get("distributed.comm.timeouts.connect"))
     try:
         client = distributed.Client(address, timeout=timeout)
     except (OSError, TimeoutError) as error:
@@ -127,6 +133,12 @@ def connect(cluster: Any, *, timeout: float = CONNECT_TIMEOUT) -> Iterator[Any]:
         ) from None
     with client:
         yield client
+
+
+def _seconds(value: Any) -> float:
+    from dask.utils import parse_timedelta
+
+    return float(parse_timedelta(value, default="seconds"))
 
 
 def check_sendable(campaign: Campaign) -> bytes:
@@ -210,11 +222,11 @@ class DaskEngine:
 
     def _preflight(self, payload: bytes) -> None:
         try:
-            self.client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+            self.client.wait_for_workers(1, timeout=WORKERS_TIMEOUT)
         except TimeoutError:
             raise ClusterError(
                 f"the Dask scheduler {self.client.scheduler.address} has no workers after "
-                f"{CONNECT_TIMEOUT:.0f} s; start some with `dask worker ADDRESS`"
+                f"{WORKERS_TIMEOUT:.0f} s; start some with `dask worker ADDRESS`"
             ) from None
         from pytest_metamorphic.core.campaign import _worker
 

@@ -1,0 +1,137 @@
+"""``pytest --mt-campaign --mt-dask``: a campaign test run on a Dask LocalCluster."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tests.plugin.test_engine_plugin import CAMPAIGN, outcome
+
+pytest.importorskip("distributed", reason="the dask extra is not installed")
+
+# The same campaign, slow enough to be interrupted half-way.
+SLOW_CAMPAIGN = CAMPAIGN.replace(
+    "def system(xs):\n", "def system(xs):\n    import time\n    time.sleep(0.05)\n"
+)
+
+
+def report(pytester: pytest.Pytester, folder: str = "mt-campaigns") -> dict:
+    return json.loads((pytester.path / folder / "dedupe" / "report.json").read_text())
+
+
+def test_a_campaign_on_a_local_cluster_equals_the_one_process_run(
+    pytester: pytest.Pytester,
+) -> None:
+    pytester.makepyfile(test_c=CAMPAIGN)
+    alone = pytester.runpytest_subprocess("--mt-campaign", "--mt-campaign-dir", "one")
+    alone.assert_outcomes(passed=4)
+    result = pytester.runpytest_subprocess(
+        "--mt-campaign", "--mt-campaign-dir", "two", "--mt-dask", "local:2"
+    )
+    # Shard 0's test runs the whole campaign; the cluster spreads its sources.
+    result.assert_outcomes(passed=1, deselected=3)
+    result.stdout.fnmatch_lines(
+        [
+            "*(complete)*",
+            "ran on the Dask cluster tcp://127.0.0.1:* (2 workers, * tasks of guided "
+            "sources, 40 sources in * s)",
+        ]
+    )
+    on_cluster = report(pytester, "two")
+    assert outcome(on_cluster) == outcome(report(pytester, "one"))
+    assert on_cluster["execution"][0]["engine"] == "dask"
+    logs = sorted(p.name for p in (pytester.path / "two" / "dedupe").glob("*.jsonl"))
+    assert logs == [f"shard-{k}-of-4.jsonl" for k in range(4)]  # the same layout as xdist's
+    markdown = (pytester.path / "two" / "dedupe" / "report.md").read_text()
+    assert "ran on the Dask cluster" in markdown
+
+
+def test_a_run_interrupted_on_the_cluster_resumes_without_it(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_c=SLOW_CAMPAIGN)
+    folder = pytester.path / "mt-campaigns" / "dedupe"
+    command = [sys.executable, "-m", "pytest", "--mt-campaign", "--mt-dask", "local:2"]
+    process = subprocess.Popen(
+        [*command, "-p", "no:cacheprovider"],
+        cwd=pytester.path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while _records(folder) < 12:
+        assert process.poll() is None, process.communicate()[0]
+        assert time.monotonic() < deadline, "the cluster run made no progress"
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)  # Ctrl-C
+    output, _ = process.communicate(timeout=60)
+    assert process.returncode == pytest.ExitCode.INTERRUPTED, output
+    partial = report(pytester)
+    assert not partial["complete"] and partial["sources_done"] >= 12, output
+    assert "PARTIAL" in output
+    resumed = pytester.runpytest_subprocess("--mt-campaign", "--mt-resume")
+    resumed.assert_outcomes(passed=4)
+    resumed.stdout.fnmatch_lines(["*(complete)*", "*sources read back from the logs*"])
+    after = report(pytester)
+    sources = [
+        json.loads(line)["source"]
+        for path in folder.glob("shard-*.jsonl")
+        for line in path.read_text().splitlines()[1:]
+    ]
+    assert sorted(sources) == list(range(40))  # nothing lost, nothing twice
+    fresh = pytester.runpytest_subprocess("--mt-campaign", "--mt-campaign-dir", "fresh")
+    fresh.assert_outcomes(passed=4)
+    assert outcome(after) == outcome(report(pytester, "fresh"))
+
+
+def _records(folder) -> int:
+    return sum(
+        max(len(path.read_text().splitlines()) - 1, 0) for path in folder.glob("shard-*.jsonl")
+    )
+
+
+def test_a_run_without_the_cluster_resumes_on_it(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_c=CAMPAIGN)
+    first = pytester.runpytest_subprocess("--mt-campaign", "-k", "shard0 or shard1")
+    first.stdout.fnmatch_lines(["*PARTIAL: 20 of 40 sources*"])
+    resumed = pytester.runpytest_subprocess("--mt-campaign", "--mt-resume", "--mt-dask", "local:1")
+    resumed.stdout.fnmatch_lines(["*(complete)*", "*20 sources read back from the logs"])
+    execution = report(pytester)["execution"]
+    assert execution[0]["sources"] == 20 and execution[0]["resumed"] == 20
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--mt-dask", "local:2"], "*--mt-dask runs campaigns: give --mt-campaign too*"),
+        (["--mt-campaign", "--mt-dask", "local:0"], "*--mt-dask: *local:N* must be*>= 1*"),
+        (["--mt-campaign", "--mt-dask", "nohost"], "*--mt-dask: *neither 'local:N' nor*"),
+        (
+            ["--mt-campaign", "--mt-dask", "local:1", "--mt-dask-batch", "0"],
+            "*--mt-dask-batch=0 must be >= 1*",
+        ),
+        (["--mt-campaign", "--mt-dask-batch", "4"], "*--mt-dask-batch only makes sense with*"),
+    ],
+)
+def test_bad_dask_options_are_usage_errors(
+    pytester: pytest.Pytester, arguments: list[str], message: str
+) -> None:
+    pytester.makepyfile(test_x="def test_x():\n    pass\n")
+    result = pytester.runpytest(*arguments)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([message])
+
+
+def test_an_unreachable_scheduler_is_a_clear_error(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT", "2s")
+    pytester.makepyfile(test_c=CAMPAIGN)
+    pytester.makeini("[pytest]\nmt_dask = tcp://127.0.0.1:9\n")
+    result = pytester.runpytest_subprocess("--mt-campaign", "-k", "shard0")
+    result.stdout.fnmatch_lines(["*could not reach the Dask scheduler at tcp://127.0.0.1:9*"])
+    assert result.ret != pytest.ExitCode.OK
