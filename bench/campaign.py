@@ -4,14 +4,21 @@ Zhou & Sun's protocol (CACM 2019): S sources (default 1000 synthetic HDL-64E str
 scenes), each with one follow-up per noise size n in {10, 100, 1000}, the system run once
 per source and reused for its three follow-ups: 4S SUT runs (the paper's 6S without the
 cache). A temporary test module defines the campaign with ``campaign_test``; pytest runs it
-twice in subprocesses, ``pytest --mt-campaign`` single-process and with ``-n 2``
-(pytest-xdist), each timed by the wall clock, start-up included. The two merged JSON reports
-must be identical (the campaign promises it); the bench exits 1 otherwise.
+three times in subprocesses, ``pytest --mt-campaign`` single-process, with ``-n 2``
+(pytest-xdist) and with ``--mt-dask local:2`` (a Dask LocalCluster of 2 worker processes),
+each timed by the wall clock, start-up included. The merged JSON reports must be identical
+(the campaign promises it); the bench exits 1 otherwise.
 
-Targets for S = 1000: under 300 s single-process, speedup >= 1.7 with ``-n 2``. Both need an
-otherwise idle machine with at least 2 cores.
+Then the Dask engine's own cost: a campaign of the same shape whose system sleeps 10 ms
+(no CPU, so only the engine competes for the cores) runs in this process and on a 2-worker
+LocalCluster. ``unit_overhead`` = (workers x cluster time - one-process time) / one-process
+time: what the engine adds to the system's time (target <= 0.02), with the default guided
+batches; ``task_ms`` is the cost of one task of one source (``--mt-dask-batch 1``).
 
-    python bench/campaign.py [--sources N] [--seed S]
+Targets for S = 1000: under 300 s single-process, speedup >= 1.7 with ``-n 2`` and >= 1.8 on
+the 2-worker cluster. They need an otherwise idle machine with at least 2 cores.
+
+    python bench/campaign.py [--sources N] [--seed S] [--overhead-sources N]
 """
 
 from __future__ import annotations
@@ -189,13 +196,106 @@ def print_table(runs: list[Run], *, sources: int) -> None:
         )
 
 
+SLEEP_S = 0.010
+OVERHEAD_WORKERS = 2
+
+
+def sleeping_system(value: Any) -> list[int]:
+    time.sleep(SLEEP_S)
+    return [value[0]]
+
+
+def toy_source(rng: Any, index: int) -> tuple[int, ...]:
+    return (index, int(rng.integers(10**6)))
+
+
+def toy_followup(value: tuple[int, ...], size: int, rng: Any) -> tuple[int, ...]:
+    return (*value, size)
+
+
+@dataclass(frozen=True)
+class Overhead:
+    process_s: float
+    cluster_s: float  # guided batches
+    single_task_s: float  # one source per task
+    start_s: float
+    sources: int
+    calls: int
+
+    @property
+    def ratio(self) -> float:
+        return (OVERHEAD_WORKERS * self.cluster_s - self.process_s) / self.process_s
+
+    @property
+    def task_ms(self) -> float:
+        extra = OVERHEAD_WORKERS * self.single_task_s - self.process_s
+        return 1000 * extra / self.sources
+
+
+def measure_overhead(sources: int) -> Overhead:
+    """The 10 ms sleeping system in this process, then on a 2-worker LocalCluster."""
+    sys.path.insert(0, str(ROOT))
+    from pytest_metamorphic import relations
+    from pytest_metamorphic.core.campaign import Campaign, run_campaign
+    from pytest_metamorphic.core.campaign.cluster import connect
+
+    campaign = Campaign(
+        name="bench overhead",
+        source=toy_source,
+        followup=toy_followup,
+        system=sleeping_system,
+        relation=relations.subset(),
+        sizes=(10, 100, 1000),
+        sources=sources,
+    )
+    process = run_campaign(campaign)
+    started = time.perf_counter()
+    with connect(f"local:{OVERHEAD_WORKERS}") as client:
+        client.run(lambda: None)  # workers up and answering
+        start_s = time.perf_counter() - started
+        guided = run_campaign(campaign, cluster=client)
+        single = run_campaign(campaign, cluster=client, batch_size=1)
+    for result in (guided, single):
+        if result.outcome_json() != process.outcome_json():
+            fail("the overhead campaign's cluster result differs from the one-process one")
+    return Overhead(
+        process.execution[0]["seconds"],
+        guided.execution[0]["seconds"],
+        single.execution[0]["seconds"],
+        start_s,
+        sources,
+        process.sut_calls,
+    )
+
+
+def print_overhead(overhead: Overhead) -> None:
+    per_call = overhead.process_s / overhead.calls * 1000
+    print(
+        f"\nengine overhead: {overhead.sources} sources x 4 calls of a {SLEEP_S * 1000:.0f} ms "
+        f"system ({per_call:.2f} ms per call in one process, {overhead.process_s:.1f} s)"
+    )
+    print(f"{'run':<34}{'wall s':>8}{'x workers / one process':>26}")
+    print(f"{'one process':<34}{overhead.process_s:>8.2f}{1.0:>26.3f}")
+    for label, seconds in (
+        ("Dask, 2 workers, guided batches", overhead.cluster_s),
+        ("Dask, 2 workers, 1 source a task", overhead.single_task_s),
+    ):
+        ratio = OVERHEAD_WORKERS * seconds / overhead.process_s
+        print(f"{label:<34}{seconds:>8.2f}{ratio:>26.3f}")
+    print(
+        f"unit_overhead {overhead.ratio:.4f} (target <= 0.02); one task of one source costs "
+        f"{overhead.task_ms:.2f} ms; the LocalCluster took {overhead.start_s:.2f} s to start"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sources", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--overhead-sources", type=int, default=300)
     args = parser.parse_args()
-    if args.sources < 1 or args.seed < 0:
-        parser.error("--sources must be >= 1 and --seed >= 0")
+    if args.sources < 1 or args.seed < 0 or args.overhead_sources < 1:
+        parser.error("--sources and --overhead-sources must be >= 1 and --seed >= 0")
 
     # The speedup is only meaningful on an idle machine: say what this one was doing.
     load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
@@ -209,18 +309,26 @@ def main() -> None:
         module = write_project(folder, sources=args.sources, seed=args.seed)
         single = run_pytest(module, folder / "single", mode="single", extra=[])
         parallel = run_pytest(module, folder / "n2", mode="-n 2", extra=["-n", "2"])
-    for run in (single, parallel):
+        dask = run_pytest(module, folder / "dask", mode="dask 2", extra=["--mt-dask", "local:2"])
+    for run in (single, parallel, dask):
         check_complete(run, sources=args.sources)
     check_identical(single, parallel)
+    check_identical(single, dask)
 
-    print_table([single, parallel], sources=args.sources)
+    print_table([single, parallel, dask], sources=args.sources)
     speedup = single.wall_s / parallel.wall_s
+    speedup_dask = single.wall_s / dask.wall_s
     print(
-        f"speedup with -n 2: {speedup:.2f}x (target >= 1.7); merged reports identical; "
+        f"speedup with -n 2: {speedup:.2f}x (target >= 1.7); on the Dask LocalCluster of 2 "
+        f"workers: {speedup_dask:.2f}x (target >= 1.8); merged reports identical; "
         f"single-process target < 300 s for 1000 sources"
     )
+    overhead = measure_overhead(args.overhead_sources)
+    print_overhead(overhead)
     print(
         f"RESULT wall_s={single.wall_s:.1f} speedup_n2={speedup:.2f} "
+        f"speedup_dask2={speedup_dask:.2f} unit_overhead={overhead.ratio:.4f} "
+        f"task_ms={overhead.task_ms:.2f} cluster_start_s={overhead.start_s:.2f} "
         f"sut_calls={single.report['sut_calls']}"
     )
 
