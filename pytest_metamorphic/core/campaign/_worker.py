@@ -5,6 +5,7 @@ Imported only where Dask distributed is installed (by :mod:`.cluster`, and on wo
 
 from __future__ import annotations
 
+import os
 import pickle
 from typing import Any
 
@@ -36,11 +37,11 @@ class CampaignPlugin(WorkerPlugin):
         CAMPAIGNS.pop(self.token, None)
 
 
-def preflight(payload: bytes, index: int) -> str:
-    """Can this worker load the campaign and its source ``index``?"""
+def preflight(payload: bytes, index: int) -> dict[str, Any]:
+    """Can this worker load the campaign and its source ``index``? And is it tuned?"""
     campaign = pickle.loads(payload)
     campaign.source(campaign.source_rng(index), index)
-    return "ok"
+    return {"trim": os.environ.get("MALLOC_TRIM_THRESHOLD_")}
 
 
 def run_unit(token: str, indices: list[int], timeout: float | None) -> dict[str, Any]:

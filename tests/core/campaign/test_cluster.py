@@ -325,3 +325,23 @@ def test_an_unreachable_scheduler_is_a_clear_error() -> None:
         connect("tcp://127.0.0.1:9", timeout=2),
     ):
         pass
+
+
+def test_local_workers_keep_glibcs_dynamic_mmap_threshold(client) -> None:
+    # Dask's default MALLOC_TRIM_THRESHOLD_ made the reference pipeline 1.7x slower.
+    assert set(client.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_").values()) == {None}
+
+
+def test_workers_started_with_dasks_trim_setting_get_a_warning(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # A nanny leaks its workers' variables into this process: restore them afterwards.
+    for name in ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    with (
+        distributed.LocalCluster(n_workers=1, processes=True, dashboard_address=":0") as local,
+        distributed.Client(local) as client,
+        pytest.warns(UserWarning, match="MALLOC_TRIM_THRESHOLD_.*PRE_SPAWN_ENVIRON"),
+    ):
+        run_campaign(toy(sources=2), cluster=client)

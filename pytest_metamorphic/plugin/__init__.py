@@ -1,0 +1,274 @@
+"""The pytest plugin (entry point ``pytest_metamorphic_mt``).
+
+Thin on purpose: the hooks, a recorder around each metamorphic test call (which saves
+violation artifacts through :mod:`pytest_metamorphic.reports.artifacts`), replay of saved
+artifacts (``--mt-replay``), and the session summary; options live in :mod:`.options`,
+campaign tests (xdist shards, Dask) in :mod:`.campaigns`. Imports of numpy/scipy/Hypothesis
+internals happen only when a metamorphic test actually runs.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+from collections.abc import Generator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pytest_metamorphic.core.stats import Recorder, recording
+from pytest_metamorphic.plugin.campaigns import (
+    CAMPAIGN_PROPERTY,
+    CAMPAIGN_RESULT,
+    CAMPAIGNS,
+    campaign_of,
+    claim_campaign_name,
+    merge_campaign,
+    one_item_per_campaign,
+    run_campaign_shard,
+    slug,
+    write_campaign_reports,
+)
+from pytest_metamorphic.plugin.options import OPTIONS, add_options, parse_options
+from pytest_metamorphic.reports.summary import SessionSummary, junit_properties
+
+_SUMMARY = pytest.StashKey[SessionSummary]()
+_RECORDER = pytest.StashKey[Recorder]()
+_WRITER = pytest.StashKey[Any]()
+_REPLAYS = pytest.StashKey[list]()
+_REPLAY_RESULTS = pytest.StashKey[list]()
+_ARTIFACT_LIST = pytest.StashKey[list]()
+ARTIFACT_PROPERTY = "metamorphic_artifact"
+REPLAY_PROPERTY = "metamorphic_replay"
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    add_options(parser)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers", "metamorphic: a test built with @metamorphic (added automatically)"
+    )
+    config.stash[OPTIONS] = parse_options(config)
+    config.stash[_SUMMARY] = SessionSummary()
+    config.stash[CAMPAIGNS] = {}
+    config.stash[_REPLAY_RESULTS] = []
+    config.stash[_ARTIFACT_LIST] = []
+    config.stash[_REPLAYS] = _load_replays(config.stash[OPTIONS].replay)
+    config.pluginmanager.register(_SessionReporter(config), "pytest-metamorphic-reporter")
+
+
+def _load_replays(folders: tuple[Path, ...]) -> list[Any]:
+    if not folders:
+        return []
+    from pytest_metamorphic.core.errors import DataError
+    from pytest_metamorphic.reports.artifacts import load_artifact
+
+    artifacts = []
+    for folder in folders:
+        try:
+            artifacts.append(load_artifact(folder))
+        except DataError as error:
+            raise pytest.UsageError(f"--mt-replay: {error}") from None
+    return artifacts
+
+
+def _is_metamorphic(item: pytest.Item) -> bool:
+    return hasattr(getattr(item, "obj", None), "_metamorphic")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if config.stash[_REPLAYS]:
+        _select_replayed(config, items)
+    enabled = config.stash[OPTIONS].campaign
+    if enabled and config.stash[OPTIONS].dask:
+        one_item_per_campaign(config, items)
+    owners: dict[str, str] = {}  # campaign name -> the test defining it
+    for item in items:
+        if _is_metamorphic(item):
+            item.add_marker("metamorphic")
+        if campaign_of(item) is not None:
+            item.add_marker("metamorphic")
+            claim_campaign_name(owners, item)
+            if not enabled:
+                item.add_marker(pytest.mark.skip(reason="campaign: run with --mt-campaign"))
+
+
+def _select_replayed(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Keep only the tests that saved the replayed artifacts."""
+    wanted = {artifact.nodeid for artifact in config.stash[_REPLAYS]}
+    collected = {item.nodeid for item in items}
+    missing = sorted(wanted - collected)
+    if missing:
+        folders = [str(a.folder) for a in config.stash[_REPLAYS] if a.nodeid in missing]
+        raise pytest.UsageError(
+            f"--mt-replay: the test(s) {missing} that saved {folders} were not collected; "
+            "run pytest from the same root directory, with the test file on the command line"
+        )
+    keep = [item for item in items if item.nodeid in wanted]
+    dropped = [item for item in items if item.nodeid not in wanted]
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+    items[:] = keep
+
+
+def _replayed_here(item: pytest.Item) -> list[Any]:
+    return [a for a in item.config.stash[_REPLAYS] if a.nodeid == item.nodeid]
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
+    __tracebackhide__ = True
+    artifacts = _replayed_here(pyfuncitem)
+    if not artifacts:
+        return None
+    spec = getattr(pyfuncitem.obj, "_metamorphic", None)
+    if spec is None:
+        raise pytest.UsageError(f"--mt-replay: {pyfuncitem.nodeid} is not a @metamorphic test")
+    from pytest_metamorphic.core.errors import MetamorphicViolation
+    from pytest_metamorphic.reports.replay import replay
+
+    names = list(inspect.signature(spec.function).parameters)[1:]
+    fixtures = {name: pyfuncitem.funcargs[name] for name in names}
+    results = [replay(artifact, spec, fixtures) for artifact in artifacts]
+    pyfuncitem.stash[_REPLAY_RESULTS] = results
+    failing = [result for result in results if result.still_fails]
+    if failing:
+        lines = [line for result in failing for line in result.lines()]
+        raise MetamorphicViolation(
+            "replayed violation(s) still fail:\n" + "\n".join(lines),
+            relation=failing[0].artifact.relation,
+            verdict=failing[0].verdict,
+        )
+    return True
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
+    __tracebackhide__ = True
+    if campaign_of(item) is not None:
+        run_campaign_shard(item)
+        return (yield)
+    if not _is_metamorphic(item) or _replayed_here(item):
+        return (yield)
+    options = item.config.stash[OPTIONS]
+    recorder = Recorder(
+        followups=options.followups,
+        check_determinism=options.check_determinism,
+        minimize_budget=options.minimize_budget,
+        timeout=options.timeout,
+        nodeid=item.nodeid,
+    )
+    if options.artifacts is not None:
+        recorder.on_violation = _ArtifactSink(options.artifacts, item, recorder)
+    item.stash[_RECORDER] = recorder
+    with recording(recorder):
+        return (yield)
+
+
+class _ArtifactSink:
+    """Saves a test's violations; imports the writer only when the first one happens."""
+
+    def __init__(self, root: Path, item: pytest.Item, recorder: Recorder) -> None:
+        self.root, self.item, self.recorder = root, item, recorder
+
+    def __call__(self, record: Any, final: bool) -> str | None:
+        writer = self.item.stash.get(_WRITER, None)
+        if writer is None:
+            from pytest_metamorphic.reports.artifacts import ArtifactWriter
+
+            writer = ArtifactWriter(self.root, self.item.nodeid, self.recorder)
+            self.item.stash[_WRITER] = writer
+        return writer(record, final)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    if call.when == "call":
+        recorder = item.stash.get(_RECORDER, None)
+        if recorder is not None:
+            # user_properties travel with the report: to JUnit XML and across xdist.
+            item.user_properties.extend(junit_properties(recorder))
+        writer = item.stash.get(_WRITER, None)
+        if writer is not None:
+            for folder in dict.fromkeys(writer.written):
+                item.user_properties.append((ARTIFACT_PROPERTY, str(folder)))
+        for result in item.stash.get(_REPLAY_RESULTS, []):
+            item.user_properties.append((REPLAY_PROPERTY, json.dumps(result.to_json())))
+        result = item.stash.get(CAMPAIGN_RESULT, None)
+        if result is not None:
+            item.user_properties.append((CAMPAIGN_PROPERTY, json.dumps(result.to_json())))
+            for size, counts in sorted(result.sizes.items()):
+                item.user_properties.append((f"mt.campaign.n{size}.pairs", counts.pairs))
+                item.user_properties.append((f"mt.campaign.n{size}.violations", counts.violations))
+    return (yield)
+
+
+class _SessionReporter:
+    """Collects counts from test reports and prints/writes the summary.
+
+    Registered as an object so its hooks can reach the config (``pytest_runtest_logreport``
+    gets only the report). Under xdist the controller receives every worker's reports here.
+    """
+
+    def __init__(self, config: pytest.Config) -> None:
+        self.config = config
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        if report.when != "call":
+            return
+        self.config.stash[_SUMMARY].add_report(
+            report.nodeid, report.outcome, report.user_properties
+        )
+        for key, value in report.user_properties:
+            if key == ARTIFACT_PROPERTY:
+                self.config.stash[_ARTIFACT_LIST].append((report.nodeid, value))
+            elif key == REPLAY_PROPERTY:
+                self.config.stash[_REPLAY_RESULTS].append(json.loads(value))
+        blob = next((v for k, v in report.user_properties if k == CAMPAIGN_PROPERTY), None)
+        if blob is not None:
+            from pytest_metamorphic.core.campaign import result_from_json
+
+            merge_campaign(self.config, result_from_json(json.loads(blob)))
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        if hasattr(self.config, "workerinput"):
+            return
+        summary = self.config.stash[_SUMMARY]
+        if summary.tests:
+            terminalreporter.write_sep("=", "metamorphic relations")
+            for line in summary.format_table():
+                terminalreporter.write_line(line)
+        artifacts = self.config.stash[_ARTIFACT_LIST]
+        if artifacts:
+            terminalreporter.write_sep("=", "metamorphic violation artifacts")
+            for nodeid, folder in artifacts:
+                terminalreporter.write_line(f"{nodeid}: {folder}")
+            terminalreporter.write_line("replay one: pytest --mt-replay <folder>")
+        replays = self.config.stash[_REPLAY_RESULTS]
+        if replays:
+            terminalreporter.write_sep("=", "metamorphic replay")
+            for result in replays:
+                for line in result["lines"]:
+                    terminalreporter.write_line(line)
+        campaigns = self.config.stash[CAMPAIGNS]
+        if campaigns:
+            from pytest_metamorphic.reports.campaign import format_table
+
+            for name, result in campaigns.items():
+                terminalreporter.write_sep("=", f"campaign {name}")
+                for line in format_table(result):
+                    terminalreporter.write_line(line)
+                folder = self.config.stash[OPTIONS].campaign_dir / slug(name)
+                terminalreporter.write_line(f"reports and logs: {folder}/")
+
+    def pytest_sessionfinish(self) -> None:
+        if hasattr(self.config, "workerinput"):
+            return
+        options = self.config.stash[OPTIONS]
+        if options.report is not None:
+            self.config.stash[_SUMMARY].write_json(options.report)
+        for name, result in self.config.stash[CAMPAIGNS].items():
+            write_campaign_reports(result, options.campaign_dir / slug(name))
