@@ -28,6 +28,7 @@ from pytest_metamorphic.plugin.campaigns import (
     one_item_per_campaign,
     run_campaign_shard,
     slug,
+    start_cluster_early,
     write_campaign_reports,
 )
 from pytest_metamorphic.plugin.options import OPTIONS, add_options, parse_options
@@ -58,6 +59,10 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_ARTIFACT_LIST] = []
     config.stash[_REPLAYS] = _load_replays(config.stash[OPTIONS].replay)
     config.pluginmanager.register(_SessionReporter(config), "pytest-metamorphic-reporter")
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    start_cluster_early(session.config)
 
 
 def _load_replays(folders: tuple[Path, ...]) -> list[Any]:

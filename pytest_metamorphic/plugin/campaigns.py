@@ -21,6 +21,7 @@ __all__ = [
     "one_item_per_campaign",
     "run_campaign_shard",
     "slug",
+    "start_cluster_early",
     "write_campaign_reports",
 ]
 
@@ -113,6 +114,19 @@ def _progress_bar(item: pytest.Item, name: str, *, where: str) -> Any:
         shard=where,
         capture=item.config.pluginmanager.get_plugin("capturemanager"),
     )
+
+
+def start_cluster_early(config: pytest.Config) -> None:
+    """Connect (start a local cluster) at session start and let the workers import the
+    package while pytest collects: in the campaign test they are ready. Only in the
+    process that runs the tests (not an xdist controller)."""
+    options = config.stash[OPTIONS]
+    if not (options.campaign and options.dask) or config.getoption("numprocesses", None):
+        return
+    client = _dask_client(config)
+    from pytest_metamorphic.core.campaign import _worker
+
+    client.run(_worker.warm_up, wait=False)
 
 
 def _dask_client(config: pytest.Config) -> Any:

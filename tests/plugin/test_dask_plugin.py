@@ -133,5 +133,6 @@ def test_an_unreachable_scheduler_is_a_clear_error(
     pytester.makepyfile(test_c=CAMPAIGN)
     pytester.makeini("[pytest]\nmt_dask = tcp://127.0.0.1:9\n")
     result = pytester.runpytest_subprocess("--mt-campaign", "-k", "shard0")
-    result.stdout.fnmatch_lines(["*could not reach the Dask scheduler at tcp://127.0.0.1:9*"])
-    assert result.ret != pytest.ExitCode.OK
+    # Before collection: the session starts by connecting.
+    result.stderr.fnmatch_lines(["*could not reach the Dask scheduler at tcp://127.0.0.1:9*"])
+    assert result.ret == pytest.ExitCode.USAGE_ERROR

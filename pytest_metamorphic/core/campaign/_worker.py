@@ -49,3 +49,22 @@ def run_unit(token: str, indices: list[int], timeout: float | None) -> dict[str,
     campaign = CAMPAIGNS[token]
     records = [run_source(campaign, index, timeout) for index in indices]
     return {"worker": get_worker().address, "records": records}
+
+
+async def warm_up() -> None:
+    """Import what campaigns run (numpy, scipy, the LiDAR domain) before the first task,
+    in a thread: the worker keeps answering meanwhile (``Client.run(wait=False)`` needs a
+    coroutine)."""
+    import asyncio
+
+    await asyncio.get_running_loop().run_in_executor(None, _import_domains)
+
+
+def _import_domains() -> None:
+    import contextlib
+    import importlib
+
+    for module in ("pytest_metamorphic.lidar.campaign", "pytest_metamorphic.driving.campaign"):
+        # An optional extra missing: the campaign will say so itself.
+        with contextlib.suppress(ImportError):
+            importlib.import_module(module)
