@@ -37,6 +37,13 @@ from typing import Any
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.core.perturbation import as_reducible
+from pytest_metamorphic.reports.inputs import (
+    RECORD,
+    box_json,
+    decode_input,
+    encode_input,
+    is_box,
+)
 
 __all__ = [
     "RECORD",
@@ -51,10 +58,7 @@ __all__ = [
 
 FORMAT = "pytest-metamorphic violation artifact"
 VERSION = 1
-RECORD = "record.json"
 _MAX_ARRAY = 100_000
-_FRAME_RE = re.compile(r"^(?P<path>.*) \[(?P<topic>/\S*) #(?P<index>\d+)\]$")
-_BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 # Perturbations that can be rebuilt from their JSON (type name -> module, class, field).
 _PERTURBATIONS = {
     "NoiseOutsideROI": ("pytest_metamorphic.lidar.perturb", "points"),
@@ -65,22 +69,6 @@ _PERTURBATIONS = {
 
 
 # -- JSON ---------------------------------------------------------------------------------------
-
-
-def _is_box(value: Any) -> bool:
-    return type(value).__name__ == "Box" and type(value).__module__.endswith("lidar.obstacles")
-
-
-def _box_json(box: Any) -> dict[str, Any]:
-    return {
-        "label": box.label,
-        "center": list(box.center),
-        "size": list(box.size),
-        "yaw": box.yaw,
-        "score": box.score,
-        "points": box.points,
-        "describe": box.describe(),
-    }
 
 
 def to_jsonable(value: Any, *, depth: int = 0) -> Any:
@@ -96,8 +84,8 @@ def to_jsonable(value: Any, *, depth: int = 0) -> Any:
         return value if math.isfinite(value) else str(value)
     if depth > 20:
         return {"repr": describe_value(value)}
-    if _is_box(value):
-        return _box_json(value)
+    if is_box(value):
+        return box_json(value)
     if isinstance(value, Mapping):
         return {str(key): to_jsonable(item, depth=depth + 1) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
@@ -116,118 +104,7 @@ def to_jsonable(value: Any, *, depth: int = 0) -> Any:
     return {"repr": describe_value(value)}
 
 
-def _round_trips(value: Any) -> bool:
-    try:
-        text = json.dumps(value, allow_nan=False)
-    except (TypeError, ValueError):
-        return False
-    loaded = json.loads(text)
-    return type(loaded) is type(value) and loaded == value
-
-
 # -- inputs -------------------------------------------------------------------------------------
-
-
-def _roi_json(roi: Any) -> dict[str, Any] | None:
-    if roi is None:
-        return None
-    from pytest_metamorphic.lidar.roi import ROI
-
-    if not isinstance(roi, ROI):
-        return {"repr": describe_value(roi)}
-    return {
-        "polygons": [polygon.tolist() for polygon in roi.polygons],
-        "cell_size": roi.cell_size,
-        "extend_dist": roi.extend_dist,
-        "raster_range": roi.raster_range,
-    }
-
-
-def _bag_origin(origin: str) -> tuple[str, str] | None:
-    """``(bag path, topic)`` when a frame's origin names a bag message."""
-    match = _FRAME_RE.match(origin)
-    if match is None:
-        return None
-    path = Path(match["path"])
-    if path.suffix.lower() in _BAG_SUFFIXES or (path / "metadata.yaml").is_file():
-        return str(path), match["topic"]
-    return None
-
-
-def _encode_input(value: Any, folder: Path, name: str) -> dict[str, Any]:
-    """Write ``value`` under ``folder`` (or inline) and describe how to read it back."""
-    from pytest_metamorphic.lidar.frame import Frame
-
-    if isinstance(value, Frame):
-        from pytest_metamorphic.lidar.io import write_bag, write_pcd
-
-        write_pcd(value.cloud, folder / f"{name}.pcd")
-        spec: dict[str, Any] = {
-            "kind": "frame",
-            "cloud": f"{name}.pcd",
-            "points": len(value.cloud),
-            "roi": _roi_json(value.roi),
-            "boxes": [_box_json(box) for box in value.boxes],
-            "pose": None if value.pose is None else value.pose.tolist(),
-            "origin": value.source,
-            "index": value.index,
-        }
-        bag = _bag_origin(value.source)
-        if bag is not None:
-            write_bag(value.cloud, folder / f"{name}.bag", topic=bag[1])
-            spec["bag"] = f"{name}.bag"
-            spec["topic"] = bag[1]
-        return spec
-    if _round_trips(value):
-        return {"kind": "json", "value": value}
-    return {
-        "kind": "unsupported",
-        "type": f"{type(value).__module__}.{type(value).__qualname__}",
-        "repr": describe_value(value),
-    }
-
-
-def _decode_input(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
-    kind = spec.get("kind")
-    if kind == "json":
-        return spec["value"]
-    if kind == "frame":
-        from pytest_metamorphic.lidar.frame import Frame
-        from pytest_metamorphic.lidar.io import read_pcd
-        from pytest_metamorphic.lidar.obstacles import Box
-        from pytest_metamorphic.lidar.roi import ROI
-
-        cloud = read_pcd(folder / spec["cloud"], zeros="keep")
-        roi = spec.get("roi")
-        if roi is not None:
-            if "polygons" not in roi:
-                raise DataError(
-                    f"{name}: the ROI ({roi.get('repr')}) is not an ROI and cannot be restored",
-                    path=folder / RECORD,
-                )
-            roi = ROI.from_polygons(
-                roi["polygons"],
-                cell_size=roi["cell_size"],
-                extend_dist=roi["extend_dist"],
-                raster_range=roi["raster_range"],
-            )
-        boxes = tuple(
-            Box(b["center"], b["size"], b["yaw"], b["label"], b["score"], b["points"])
-            for b in spec.get("boxes", ())
-        )
-        return Frame(
-            cloud,
-            roi=roi,
-            boxes=boxes,
-            pose=spec.get("pose"),
-            source=spec.get("origin", ""),
-            index=spec.get("index", 0),
-        )
-    raise DataError(
-        f"the {name} input ({spec.get('type', kind)}: {spec.get('repr', '')}) was not saved in "
-        "a form that can be read back; only LiDAR frames and JSON values replay",
-        path=folder / RECORD,
-    )
 
 
 def _decode_params(params: Mapping[str, Any]) -> dict[str, Any]:
@@ -262,7 +139,7 @@ def _slug(text: str, limit: int = 60) -> str:
 
 
 def _boxes_or_none(value: Any) -> list[Any] | None:
-    if isinstance(value, (list, tuple)) and all(_is_box(box) for box in value):
+    if isinstance(value, (list, tuple)) and all(is_box(box) for box in value):
         return list(value)
     return None
 
@@ -370,8 +247,8 @@ def _fill(
     record: Any, folder: Path, *, status: str, sut_calls: int | None, final_path: Path
 ) -> None:
     followup = record.minimal_followup
-    source_spec = _encode_input(record.source, folder, "source")
-    followup_spec = _encode_input(followup.input, folder, "followup")
+    source_spec = encode_input(record.source, folder, "source")
+    followup_spec = encode_input(followup.input, folder, "followup")
     minimal_points = _injected_points(followup.params)
     if minimal_points is not None and source_spec["kind"] == "frame":
         from pytest_metamorphic.lidar.cloud import PointCloud
@@ -402,6 +279,21 @@ def _fill(
                 title=_picture_title(record),
             )
             picture = "birdseye.png"
+    aeb = None
+    if source_spec["kind"] == "aeb_scenario" and followup_spec["kind"] == "aeb_scenario":
+        from pytest_metamorphic.reports.aeb_artifacts import write_aeb_files
+
+        aeb = write_aeb_files(
+            folder,
+            source=record.source,
+            followup=followup.input,
+            source_output=record.source_output,
+            followup_output=record.minimal_output,
+            relevant_time=record.minimal_verdict.details.get("relevant_time"),
+            title=_picture_title(record),
+        )
+        picture = aeb["picture"]
+        picture_note = "; ".join(aeb["notes"])
     reduction = record.reduction
     document = {
         "format": FORMAT,
@@ -434,6 +326,7 @@ def _fill(
         "hidden": to_jsonable(hidden),
         "picture": picture,
         "picture_note": picture_note,
+        "aeb": aeb,
         "replay": f"pytest --mt-replay {final_path}",
     }
     files = sorted(p.name for p in folder.iterdir())
@@ -521,13 +414,13 @@ class Artifact:
 
     def source(self) -> Any:
         """The source input, rebuilt from the saved files."""
-        return _decode_input(self.record["source"], self.folder, "source")
+        return decode_input(self.record["source"], self.folder, "source")
 
     def followup(self) -> Any:
         """The (minimal) follow-up as a :class:`~pytest_metamorphic.core.engine.Followup`."""
         from pytest_metamorphic.core.engine import Followup
 
-        value = _decode_input(self.record["followup"], self.folder, "followup")
+        value = decode_input(self.record["followup"], self.folder, "followup")
         return Followup(value, _decode_params(self.record.get("params") or {}))
 
 
