@@ -59,7 +59,10 @@ def test_every_euro_ncap_test_exports_schema_valid_files(kind: str, tmp_path: Pa
 
 def test_an_osm_street_becomes_an_opendrive_polyline_of_its_length(tmp_path: Path) -> None:
     path = shared_data_path("osm_osmnx", "West-Oakland.osm.bz2")
-    road = max(load_roads(path, highway=DRIVABLE_HIGHWAYS), key=lambda r: (len(r.centerline) >= 4, r.length))
+    road = max(
+        load_roads(path, highway=DRIVABLE_HIGHWAYS),
+        key=lambda r: (len(r.centerline) >= 4, r.length),
+    )
     geometry = RoadGeometry.from_osm(road)
     scenario = euro_ncap(
         "CPNA-75", ego_speed_kmh=30, road=geometry, conflict_s=min(geometry.length - 10, 150)
@@ -71,7 +74,7 @@ def test_an_osm_street_becomes_an_opendrive_polyline_of_its_length(tmp_path: Pat
     lines = list(drive.iter("geometry"))
     assert len(lines) >= 2  # a real street bends
     assert sum(float(g.get("length")) for g in lines) == pytest.approx(geometry.length, rel=1e-6)
-    lanes = list(drive.iter("right"))[0].findall("lane")
+    lanes = next(iter(drive.iter("right"))).findall("lane")
     assert len(lanes) == geometry.lanes
     assert all(
         float(lane.find("width").get("a")) == pytest.approx(geometry.lane_width) for lane in lanes
@@ -87,7 +90,7 @@ def test_a_file_that_breaks_the_schema_is_named(tmp_path: Path) -> None:
     with pytest.raises(DataError, match=r"scenario\.xosc.*schema violation"):
         openscenario.validate_openscenario(files.xosc)
     (tmp_path / "plain.xml").write_text("<Other/>")
-    with pytest.raises(DataError, match="not an OpenSCENARIO 1.x file"):
+    with pytest.raises(DataError, match=r"not an OpenSCENARIO 1\.x file"):
         openscenario.validate_openscenario(tmp_path / "plain.xml")
 
 
@@ -95,7 +98,9 @@ def test_bad_arguments_are_named(tmp_path: Path) -> None:
     with pytest.raises(Exception, match="must be a Scenario"):
         openscenario.write_openscenario("CPNA-25", tmp_path)
     with pytest.raises(Exception, match="name='a b'"):
-        openscenario.write_openscenario(euro_ncap("CPNA-25", ego_speed_kmh=20), tmp_path, name="a b")
+        openscenario.write_openscenario(
+            euro_ncap("CPNA-25", ego_speed_kmh=20), tmp_path, name="a b"
+        )
 
 
 def test_scenarios_round_trip_through_json_exactly() -> None:

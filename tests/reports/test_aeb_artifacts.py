@@ -71,5 +71,5 @@ def test_a_corrupt_recorded_scenario_is_named(tmp_path: Path) -> None:
     from pytest_metamorphic.core.errors import DataError
     from pytest_metamorphic.reports.inputs import decode_input
 
-    with pytest.raises(DataError, match="source: .*not a recorded AEB scenario"):
+    with pytest.raises(DataError, match=r"source: .*not a recorded AEB scenario"):
         decode_input({"kind": "aeb_scenario", "scenario": {"kind": "x"}}, tmp_path, "source")

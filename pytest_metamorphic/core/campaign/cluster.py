@@ -331,7 +331,7 @@ class DaskEngine:
                 records, again = self._collect(future, [index], distributed)
                 if again:
                     self.worker_crashes += 1
-                    records = [_worker_died(index, future.exception())]
+                    records = [_worker_died(index, _failure(future))]
                 in_flight -= 1
                 yield records[0], in_flight
         finally:
@@ -371,10 +371,23 @@ class DaskEngine:
         self, future: Any, batch: list[int], distributed: Any
     ) -> tuple[list[dict[str, Any]], list[int]]:
         """(records, sources to run again) for one finished task."""
+        if future.status not in ("finished", "error", "cancelled"):
+            # Finished, then lost with its worker before we fetched it: the scheduler is
+            # computing it again (seen under load while workers were being killed).
+            distributed.wait(future)
         if future.status == "finished":
-            answer = future.result()
+            try:
+                answer = future.result()
+            except Exception:  # its data died with a worker: nothing counted, run again
+                self.retried += 1
+                return [], list(batch)
             self.units[answer["worker"]] = self.units.get(answer["worker"], 0) + 1
             return answer["records"], []
+        if future.status == "cancelled":
+            # Not by us: the scheduler gave the task up (seen under load while workers
+            # were dying); it counted nothing, so it simply runs again.
+            self.retried += 1
+            return [], list(batch)
         error = future.exception()
         if isinstance(error, distributed.KilledWorker):
             self.retried += 1
@@ -385,12 +398,19 @@ class DaskEngine:
         ) from error
 
 
-def _worker_died(index: int, error: BaseException) -> dict[str, Any]:
+def _failure(future: Any) -> str:
+    if future.status == "cancelled":
+        return "the scheduler cancelled the task"
+    error = future.exception()
+    return f"{type(error).__name__}: {error}"
+
+
+def _worker_died(index: int, failure: str) -> dict[str, Any]:
     """The record of a source whose worker died every time it ran it: a crash, as any."""
     return {
         "source": index,
         "pairs": [],
         "sut_calls": 0,
         "crash": f"WorkerDied: the Dask worker running source {index} died each time it "
-        f"was tried ({type(error).__name__}: {error})",
+        f"was tried ({failure})",
     }
