@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -14,9 +15,11 @@ from tests.plugin.test_engine_plugin import CAMPAIGN, outcome
 
 pytest.importorskip("distributed", reason="the dask extra is not installed")
 
-# The same campaign, slow enough to be interrupted half-way.
+# The same campaign, slow enough to be interrupted half-way when MT_SLOW is set (the
+# runs that resume it need not wait: the outcome does not depend on the time taken).
 SLOW_CAMPAIGN = CAMPAIGN.replace(
-    "def system(xs):\n", "def system(xs):\n    import time\n    time.sleep(0.05)\n"
+    "def system(xs):\n",
+    "def system(xs):\n    import os, time\n    time.sleep(float(os.environ.get('MT_SLOW', 0)))\n",
 )
 
 
@@ -58,6 +61,7 @@ def test_a_run_interrupted_on_the_cluster_resumes_without_it(pytester: pytest.Py
     process = subprocess.Popen(
         [*command, "-p", "no:cacheprovider"],
         cwd=pytester.path,
+        env={**os.environ, "MT_SLOW": "0.2"},
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,

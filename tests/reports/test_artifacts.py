@@ -289,7 +289,7 @@ def test_unsupported_inputs_are_described_but_do_not_replay(tmp_path: Path) -> N
     writer, _ = run_saving(test_sets, tmp_path, "tests/t.py::test_sets")
     record = json.loads((writer.written[-1] / "record.json").read_text())
     assert record["source"]["kind"] == "unsupported" and "frozenset" in record["source"]["repr"]
-    with pytest.raises(DataError, match="only LiDAR frames and JSON values replay"):
+    with pytest.raises(DataError, match="only LiDAR frames, AEB scenarios and JSON values replay"):
         load_artifact(writer.written[-1]).source()
 
 

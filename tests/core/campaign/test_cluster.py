@@ -332,16 +332,22 @@ def test_local_workers_keep_glibcs_dynamic_mmap_threshold(client) -> None:
     assert set(client.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_").values()) == {None}
 
 
-def test_workers_started_with_dasks_trim_setting_get_a_warning(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    # A nanny leaks its workers' variables into this process: restore them afterwards.
-    for name in ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        monkeypatch.delenv(name, raising=False)
-    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
-    with (
-        distributed.LocalCluster(n_workers=1, processes=True, dashboard_address=":0") as local,
-        distributed.Client(local) as client,
-        pytest.warns(UserWarning, match="MALLOC_TRIM_THRESHOLD_.*PRE_SPAWN_ENVIRON"),
-    ):
-        run_campaign(toy(sources=2), cluster=client)
+def test_workers_started_with_dasks_trim_setting_get_a_warning() -> None:
+    # A nanny writes its workers' variables into this process's environment; they would
+    # reach every cluster and subprocess started after this test: put them back.
+    names = ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+    saved = {name: os.environ.get(name) for name in names}
+    try:
+        with (
+            distributed.LocalCluster(n_workers=1, processes=True, dashboard_address=":0") as local,
+            distributed.Client(local) as client,
+            pytest.warns(UserWarning, match="MALLOC_TRIM_THRESHOLD_.*PRE_SPAWN_ENVIRON"),
+        ):
+            run_campaign(toy(sources=2), cluster=client)
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
