@@ -350,4 +350,3 @@ def test_workers_started_with_dasks_trim_setting_get_a_warning() -> None:
                 os.environ.pop(name, None)
             else:
                 os.environ[name] = value
-
