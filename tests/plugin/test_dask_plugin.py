@@ -62,6 +62,8 @@ def test_a_run_interrupted_on_the_cluster_resumes_without_it(pytester: pytest.Py
         [*command, "-p", "no:cacheprovider"],
         cwd=pytester.path,
         env={**os.environ, "MT_SLOW": "0.2"},
+        # pytest-xdist workers ignore SIGINT and children inherit that: a user's shell does not.
+        preexec_fn=_default_sigint,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -90,6 +92,10 @@ def test_a_run_interrupted_on_the_cluster_resumes_without_it(pytester: pytest.Py
     fresh = pytester.runpytest_subprocess("--mt-campaign", "--mt-campaign-dir", "fresh")
     fresh.assert_outcomes(passed=4)
     assert outcome(after) == outcome(report(pytester, "fresh"))
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _records(folder) -> int:
@@ -140,3 +146,54 @@ def test_an_unreachable_scheduler_is_a_clear_error(
     # Before collection: the session starts by connecting.
     result.stderr.fnmatch_lines(["*could not reach the Dask scheduler at tcp://127.0.0.1:9*"])
     assert result.ret == pytest.ExitCode.USAGE_ERROR
+
+
+def test_a_campaign_runs_on_a_cluster_started_with_the_dask_command_line(
+    pytester: pytest.Pytester, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    # What the README's multi-machine recipe does, on one machine: `dask scheduler` and
+    # `dask worker ADDRESS` as separate processes, pytest connecting by address.
+    folder = tmp_path_factory.mktemp("scheduler")
+    scheduler_file = folder / "scheduler.json"
+    started = []
+    # The README's advice for remote workers (without it they warn, and -W error fails).
+    (folder / "dask.yaml").write_text(
+        "distributed:\n  nanny:\n    pre-spawn-environ:\n      MALLOC_TRIM_THRESHOLD_: null\n"
+    )
+    env = {**os.environ, "DASK_CONFIG": str(folder)}
+    try:
+        started.append(
+            subprocess.Popen(
+                [sys.executable, "-m", "dask", "scheduler", "--port", "0",
+                 "--dashboard-address", ":0", "--scheduler-file", str(scheduler_file)],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+            )
+        )  # fmt: skip
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists():
+            assert time.monotonic() < deadline, "dask scheduler did not start"
+            time.sleep(0.1)
+        address = json.loads(scheduler_file.read_text())["address"]
+        started.append(
+            subprocess.Popen(
+                [sys.executable, "-m", "dask", "worker", address, "--nworkers", "2",
+                 "--nthreads", "1", "--dashboard-address", ":0"],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+                cwd=pytester.path,  # the workers import the test module from here
+            )
+        )  # fmt: skip
+        pytester.makepyfile(test_c=CAMPAIGN)
+        alone = pytester.runpytest_subprocess("--mt-campaign", "--mt-campaign-dir", "one")
+        alone.assert_outcomes(passed=4)
+        result = pytester.runpytest_subprocess(
+            "--mt-campaign", "--mt-campaign-dir", "two", "--mt-dask", address, "-W", "error"
+        )
+        result.assert_outcomes(passed=1, deselected=3)
+        on_cluster = report(pytester, "two")
+        assert outcome(on_cluster) == outcome(report(pytester, "one"))
+        (run,) = on_cluster["execution"]
+        assert run["scheduler"] == address and run["workers"] == 2
+    finally:
+        for process in reversed(started):
+            process.terminate()
+            process.wait(timeout=30)

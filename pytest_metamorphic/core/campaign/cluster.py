@@ -69,7 +69,10 @@ LOCAL_SETTINGS = {
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.profile.enabled": False,
 }
-TRIM_ENV = "DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON__MALLOC_TRIM_THRESHOLD_=None"
+TRIM_FIX = (
+    "a Dask config file (YAML, in ~/.config/dask/ or the folder DASK_CONFIG names) with "
+    "distributed: {nanny: {pre-spawn-environ: {MALLOC_TRIM_THRESHOLD_: null}}}"
+)
 
 
 class ClusterError(MetamorphicError):
@@ -258,7 +261,7 @@ class DaskEngine:
             warnings.warn(
                 f"{len(trimmed)} Dask worker(s) run with MALLOC_TRIM_THRESHOLD_ set (Dask's "
                 "default), which makes array-heavy systems much slower (1.7x for the "
-                f"reference pipeline); start the workers with {TRIM_ENV}",
+                f"reference pipeline); start the workers with {TRIM_FIX}",
                 stacklevel=4,
             )
         self.workers_seen = set(answers)

@@ -341,7 +341,7 @@ def test_workers_started_with_dasks_trim_setting_get_a_warning() -> None:
         with (
             distributed.LocalCluster(n_workers=1, processes=True, dashboard_address=":0") as local,
             distributed.Client(local) as client,
-            pytest.warns(UserWarning, match="MALLOC_TRIM_THRESHOLD_.*PRE_SPAWN_ENVIRON"),
+            pytest.warns(UserWarning, match="MALLOC_TRIM_THRESHOLD_.*pre-spawn-environ"),
         ):
             run_campaign(toy(sources=2), cluster=client)
     finally:
