@@ -45,7 +45,8 @@ def one_item_per_campaign(config: pytest.Config, items: list[pytest.Item]) -> No
     ]
     if dropped:
         config.hook.pytest_deselected(items=dropped)
-        items[:] = [item for item in items if item not in set(dropped)]
+        gone = set(dropped)
+        items[:] = [item for item in items if item not in gone]
 
 
 def claim_campaign_name(owners: dict[str, str], item: pytest.Item) -> None:
