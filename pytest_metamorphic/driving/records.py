@@ -11,7 +11,7 @@ import numpy as np
 from pytest_metamorphic.core.errors import DataError
 from pytest_metamorphic.driving.kinematics import SimulationResult
 from pytest_metamorphic.driving.roads import RoadGeometry
-from pytest_metamorphic.driving.scenario import Scenario, VehicleSpec
+from pytest_metamorphic.driving.scenario import KMH, Scenario, VehicleSpec
 
 __all__ = ["result_to_json", "scenario_from_json", "scenario_to_json"]
 
@@ -80,7 +80,7 @@ def result_to_json(result: SimulationResult) -> dict[str, Any]:
             "impact_speed_kmh": collision.impact_speed_kmh,
         },
         "end_time": result.end_time,
-        "final_speed_kmh": result.final_speed * 3.6,
+        "final_speed_kmh": result.final_speed / KMH,
         "first_brake_time": result.first_brake_time,
         "stages": [list(stage) for stage in result.stages],
         "description": result.describe(),

@@ -68,21 +68,17 @@ def write_aeb_files(
         except ImportError as error:  # matplotlib is an optional extra
             notes["notes"].append(f"no picture: {error}")
     try:
-        from pytest_metamorphic.core.errors import InvalidArgument
-        from pytest_metamorphic.driving.openscenario import write_openscenario
-
-        for name, scenario, output in (
-            ("source", source, results[0]),
-            ("followup", followup, results[1]),
-        ):
-            described = getattr(output, "describe", lambda: "")()
-            files = write_openscenario(
-                scenario,
-                folder,
-                name=name,
-                description=f"{scenario.describe()}. Our run: {described}",
-            )
-            notes["openscenario"][name] = {"xosc": files.xosc.name, "xodr": files.xodr.name}
-    except InvalidArgument as error:  # scenariogeneration is an optional extra
+        import scenariogeneration  # noqa: F401  (the openscenario extra)
+    except ImportError as error:
         notes["notes"].append(f"no OpenSCENARIO files: {error}")
+        return notes
+    from pytest_metamorphic.driving.openscenario import write_openscenario
+
+    pairs = (("source", source, results[0]), ("followup", followup, results[1]))
+    for name, scenario, output in pairs:
+        run = getattr(output, "describe", lambda: "")()
+        files = write_openscenario(
+            scenario, folder, name=name, description=f"{scenario.describe()}. Our run: {run}"
+        )
+        notes["openscenario"][name] = {"xosc": files.xosc.name, "xodr": files.xodr.name}
     return notes

@@ -35,14 +35,6 @@ class Run:
     relevant_time: float | None = None
 
 
-def _stage_at(result: SimulationResult, t: float) -> str:
-    stage = "off"
-    for start, name in result.stages:
-        if start <= t + 1e-9:
-            stage = name
-    return stage
-
-
 def _polygon(ax: Any, corners: Any, **style: Any) -> None:
     points = np.asarray([*list(corners), corners[0]])
     ax.plot(points[:, 0], points[:, 1], **style)
@@ -61,12 +53,17 @@ def _draw(ax: Any, run: Run) -> None:
         ax.plot(edge[:, 0], edge[:, 1], color="black" if outer else "#aaaaaa",
                 lw=1.5 if outer else 0.8, ls="-" if outer else "--")  # fmt: skip
     offset = scenario.ego_offset
-    # The car's bumper path, one segment per step, coloured by the stage then active.
+    # The car's bumper path, one line per braking stage (the steps each stage was active).
     if len(result.positions) > 1:
         path = road.to_world(result.positions, np.full_like(result.positions, offset))
-        for k in range(len(path) - 1):
-            colour = _STAGE_COLOURS.get(_stage_at(result, float(result.times[k])), "#888888")
-            ax.plot(path[k : k + 2, 0], path[k : k + 2, 1], color=colour, lw=3)
+        starts = [(0, "off")] + [
+            (int(np.searchsorted(result.times, t)), name) for t, name in result.stages
+        ]
+        ends = [start for start, _ in starts[1:]] + [len(path) - 1]
+        for (first, name), last in zip(starts, ends, strict=True):
+            if last > first:
+                ax.plot(path[first : last + 1, 0], path[first : last + 1, 1],
+                        color=_STAGE_COLOURS.get(name, "#888888"), lw=3)  # fmt: skip
     for stage_start, name in result.stages:
         k = int(np.searchsorted(result.times, stage_start))
         if k < len(result.positions):

@@ -170,10 +170,17 @@ def check_sendable(campaign: Campaign) -> bytes:
     """The campaign pickled as Dask sends it; a part that cannot be sent is named.
 
     Raises InvalidArgument naming the part (its system, source function, ...) and what
-    to do instead; warns when a part is large (it is copied to every worker).
+    to do instead; warns when a part is large (it is copied to every worker). The parts
+    are pickled one by one only when the whole campaign fails or is large.
     """
     from distributed.protocol.pickle import dumps
 
+    try:
+        payload = dumps(campaign)
+    except Exception:
+        payload = None
+    if payload is not None and len(payload) <= LARGE_PART_BYTES:
+        return payload
     for part in _PARTS:
         value = getattr(campaign, part)
         if value is None:
@@ -197,7 +204,7 @@ def check_sendable(campaign: Campaign) -> bytes:
                 "and load it on the workers",
                 stacklevel=3,
             )
-    return dumps(campaign)
+    return payload if payload is not None else dumps(campaign)
 
 
 class DaskEngine:
