@@ -34,13 +34,21 @@ from pytest_metamorphic.driving.kinematics import (
 )
 from pytest_metamorphic.driving.osm import DRIVABLE_HIGHWAYS, load_roads
 from pytest_metamorphic.driving.roads import RoadGeometry
-from pytest_metamorphic.driving.scenario import PROTOCOLS, Scenario, euro_ncap, euro_ncap_road
+from pytest_metamorphic.driving.scenario import (
+    KEEP_MODES,
+    PROTOCOLS,
+    Keep,
+    Scenario,
+    euro_ncap,
+    euro_ncap_road,
+)
 
 __all__ = [
     "OSM_STREETS",
     "CampaignCollision",
     "CampaignRow",
     "CampaignSource",
+    "Street",
     "default_sources",
     "format_campaign",
     "iqbal_campaign",
@@ -49,11 +57,27 @@ __all__ = [
 
 ControllerFactory = Callable[[], Callable[[Observation], "float | BrakeCommand"]]
 
-#: The two real streets of the default campaign: (file under the data folder, street name,
-#: place). Both are two-way residential streets without width tags: 6 m, two 3 m lanes.
-OSM_STREETS: tuple[tuple[str, str, str], ...] = (
-    ("osm_osmnx/planet_10.068,48.135_10.071,48.137.osm", "Goethestraße", "Kirchberg, DE"),
-    ("osm_osmnx/West-Oakland.osm.bz2", "8th Street", "West Oakland, CA"),
+
+@dataclass(frozen=True)
+class Street:
+    """A real street for a campaign source: the longest drivable way called ``name`` in
+    the OSM file ``path`` (relative to the data folder), the car in lane ``ego_lane``."""
+
+    path: str
+    name: str
+    place: str
+    ego_lane: int = 0
+
+
+#: The two real streets of the default campaign, both wide enough for the 3.6 m-lane
+#: fault to matter (the carriageway reaches more than 1.8 m beyond the car's path on the
+#: near side, where the child comes from): 8th Street is a two-way residential street
+#: with a painted cycle lane on each side (``cycleway=lane``: 2 x 3 m lanes + 2 x 1.5 m,
+#: the kerb 3 m right of the car's path); 7th Street a one-way arterial (``secondary``,
+#: ``lanes=2``: 2 x 3.25 m), the car in the left lane, the kerb 4.9 m right of its path.
+OSM_STREETS: tuple[Street, ...] = (
+    Street("osm_osmnx/West-Oakland.osm.bz2", "8th Street", "West Oakland, CA"),
+    Street("osm_osmnx/West-Oakland.osm.bz2", "7th Street", "West Oakland, CA", ego_lane=1),
 )
 #: Room left between the collision point and the end of a real street (m).
 _STREET_END_MARGIN = 10.0
@@ -134,12 +158,12 @@ class CampaignRow:
         return len(self.avoidable_violations) / self.followups if self.followups else 0.0
 
 
-def _street(data_dir: Path, relative: str, name: str) -> tuple[RoadGeometry, int]:
-    """The longest drivable way called ``name`` and its OSM id."""
-    path = data_dir / relative
-    roads = [r for r in load_roads(path, highway=DRIVABLE_HIGHWAYS) if r.name == name]
+def _street(data_dir: Path, street: Street) -> tuple[RoadGeometry, int]:
+    """The longest drivable way called ``street.name`` and its OSM id."""
+    path = data_dir / street.path
+    roads = [r for r in load_roads(path, highway=DRIVABLE_HIGHWAYS) if r.name == street.name]
     if not roads:
-        raise DataError(f"has no drivable way named {name!r}", path=path)
+        raise DataError(f"has no drivable way named {street.name!r}", path=path)
     road = max(roads, key=lambda road: road.length)
     return RoadGeometry.from_osm(road), road.way_id
 
@@ -149,11 +173,11 @@ def default_sources(
     *,
     kind: str = "CPNCO-50",
     speed_kmh: float = 20.0,
-    streets: Sequence[tuple[str, str, str]] = OSM_STREETS,
+    streets: Sequence[Street] = OSM_STREETS,
 ) -> list[CampaignSource]:
     """Iqbal's three sources: the Euro NCAP straight 10 m road and two real OSM streets.
 
-    On a street the car drives in the centre of its (right-hand) lane, and the collision
+    On a street the car drives in the centre of the street's lane, and the collision
     point sits ``min(length - 10 m, 200 m)`` along the way, so that the car's start is on
     the real street.
 
@@ -165,17 +189,23 @@ def default_sources(
         The Euro NCAP test (Iqbal: the child nearside test, CPNCO-50).
     speed_kmh : float
         The source speed (Iqbal: 20 km/h).
-    streets : sequence of (relative path, street name, place)
+    streets : sequence of Street
     """
     if kind not in PROTOCOLS:
         raise InvalidArgument(f"kind={kind!r} must be one of {list(PROTOCOLS)}")
     data_dir = Path(data_dir)
     sources = [CampaignSource(euro_ncap_road().name, euro_ncap(kind, ego_speed_kmh=speed_kmh))]
-    for relative, name, place in streets:
-        road, way_id = _street(data_dir, relative, name)
+    for street in streets:
+        if not isinstance(street, Street):
+            raise InvalidArgument(f"streets must hold Street entries, got {street!r}")
+        road, way_id = _street(data_dir, street)
         conflict = min(road.length - _STREET_END_MARGIN, _MAX_CONFLICT_S)
-        scenario = euro_ncap(kind, ego_speed_kmh=speed_kmh, road=road, conflict_s=conflict)
-        sources.append(CampaignSource(f"{name}, {place} (OSM way {way_id})", scenario))
+        scenario = euro_ncap(
+            kind, ego_speed_kmh=speed_kmh, road=road, conflict_s=conflict,
+            ego_lane=street.ego_lane,
+        )  # fmt: skip
+        label = f"{street.name}, {street.place} (OSM way {way_id})"
+        sources.append(CampaignSource(label, scenario))
     return sources
 
 
@@ -184,7 +214,7 @@ def iqbal_campaign(
     controllers: Mapping[str, ControllerFactory] | None = None,
     *,
     speeds_kmh: Iterable[float] = range(15, 101),
-    keep: Literal["ego_start", "time"] = "ego_start",
+    keep: Keep = "pedestrian",
     slack: float = 0.1,
     relevance: Literal["lane", "road"] = "road",
     progress: Callable[[str], None] | None = None,
@@ -201,8 +231,10 @@ def iqbal_campaign(
     speeds_kmh : iterable of float
         Follow-up speeds; the source's own speed is skipped (Iqbal: 15..100 km/h, 85
         follow-ups around a 20 km/h source).
-    keep : {"ego_start", "time"}
-        How the follow-up re-synchronises (:meth:`Scenario.with_ego_speed`).
+    keep : {"pedestrian", "ego_start", "time"}
+        What a follow-up keeps (:meth:`Scenario.with_ego_speed`). Default Iqbal's: the car's
+        start and the pedestrian's own timing, so a faster car reaches the collision point
+        early and the pedestrian may walk into its side.
     slack, relevance
         Passed to :func:`physically_avoidable`.
     progress : callable(str), optional
@@ -359,6 +391,13 @@ def format_campaign(rows: Sequence[CampaignRow], *, title: str | None = None) ->
     return "\n".join(lines)
 
 
+_KEEP_TITLES = {
+    "pedestrian": "car start and pedestrian timing kept",
+    "ego_start": "car start kept, pedestrian re-timed",
+    "time": "time to collision kept",
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run Iqbal's campaign and print the tables."""
     parser = argparse.ArgumentParser(
@@ -368,7 +407,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--kind", action="append", choices=sorted(PROTOCOLS), help="Euro NCAP test(s)"
     )
-    parser.add_argument("--keep", action="append", choices=("ego_start", "time"))
+    parser.add_argument(
+        "--keep",
+        action="append",
+        choices=KEEP_MODES,
+        help="what a follow-up keeps (default pedestrian: Iqbal's; see Scenario.with_ego_speed)",
+    )
     parser.add_argument("--source-speed", type=float, default=20.0)
     parser.add_argument("--min-speed", type=int, default=15, help="lowest follow-up km/h")
     parser.add_argument("--max-speed", type=int, default=100, help="highest follow-up km/h")
@@ -381,11 +425,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     speeds = range(args.min_speed, args.max_speed + 1)
     kinds = args.kind or ["CPNCO-50"]
-    keeps = args.keep or ["ego_start"]
+    keeps = args.keep or ["pedestrian"]
     for kind, keep in itertools.product(kinds, keeps):
         sources = default_sources(args.data, kind=kind, speed_kmh=args.source_speed)
         rows = iqbal_campaign(sources, speeds_kmh=speeds, keep=keep, relevance=args.relevance)
-        follow = "car start kept, pedestrian re-timed" if keep == "ego_start" else "TTC kept"
+        follow = _KEEP_TITLES[keep]
         print(format_campaign(rows, title=f"{kind}, source {args.source_speed:g} km/h, {follow}"))
         print()
     return 0

@@ -123,11 +123,19 @@ def _opendrive(scenario: Scenario, xodr: Any) -> Any:
     centre = xodr.Lane(a=0)
     centre.add_roadmark(xodr.RoadMark(xodr.RoadMarkType.solid, 0.12))
     section = xodr.LaneSection(0, centre)
-    for lane in range(road.lanes):
+    # The reference line is the left kerb (lane offset width / 2): right lanes from there
+    # outward are the left margin, our lanes from the leftmost, then the right margin.
+    right_margin, left_margin = road.margins
+    if left_margin:
+        section.add_right_lane(_margin_lane(xodr, left_margin))
+    for lane in reversed(range(road.lanes)):
         driving = xodr.Lane(a=road.lane_width)
-        mark = xodr.RoadMarkType.solid if lane == 0 else xodr.RoadMarkType.broken
+        edge = lane == 0 or (lane == road.lanes - 1 and left_margin)
+        mark = xodr.RoadMarkType.solid if edge else xodr.RoadMarkType.broken
         driving.add_roadmark(xodr.RoadMark(mark, 0.12))
         section.add_right_lane(driving)
+    if right_margin:
+        section.add_right_lane(_margin_lane(xodr, right_margin))
     lanes = xodr.Lanes()
     lanes.add_laneoffset(xodr.LaneOffset(a=road.width / 2))
     lanes.add_lanesection(section)
@@ -135,6 +143,11 @@ def _opendrive(scenario: Scenario, xodr: Any) -> Any:
     network.add_road(xodr.Road(1, planview, lanes, name=road.name or None))
     network.adjust_roads_and_lanes()
     return network
+
+
+def _margin_lane(xodr: Any, width: float) -> Any:
+    """A cycle or parking lane at the kerb: on the carriageway, not for driving."""
+    return xodr.Lane(lane_type=xodr.LaneType.shoulder, a=width)
 
 
 def _world(scenario: Scenario, xosc: Any, s: float, d: float, turn: float = 0.0) -> Any:

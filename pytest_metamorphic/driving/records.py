@@ -28,6 +28,7 @@ def scenario_to_json(scenario: Scenario) -> dict[str, Any]:
             "name": road.name,
             "width": road.width,
             "lanes": road.lanes,
+            "margins": list(road.margins),
             "centerline": np.asarray(road.centerline, dtype=float).tolist(),
         },
         "ego_speed_kmh": scenario.ego_speed_kmh,
@@ -35,6 +36,7 @@ def scenario_to_json(scenario: Scenario) -> dict[str, Any]:
         "ego_distance": scenario.ego_distance,
         "ego_lane": scenario.ego_lane,
         "dummy_speed_kmh": scenario.dummy_speed_kmh,
+        "dummy_arrival_time": scenario.dummy_arrival_time,
         "vehicle": dataclasses.asdict(scenario.vehicle),
         "description": scenario.describe(),
     }
@@ -53,6 +55,7 @@ def scenario_from_json(data: Mapping[str, Any]) -> Scenario:
                 road["width"],
                 road["lanes"],
                 road["name"],
+                tuple(road.get("margins", (0.0, 0.0))),
             ),
             ego_speed_kmh=data["ego_speed_kmh"],
             conflict_s=data["conflict_s"],
@@ -60,6 +63,7 @@ def scenario_from_json(data: Mapping[str, Any]) -> Scenario:
             ego_lane=data["ego_lane"],
             dummy_speed_kmh=data["dummy_speed_kmh"],
             vehicle=VehicleSpec(**data["vehicle"]),
+            dummy_arrival_time=data.get("dummy_arrival_time"),
         )
     except (KeyError, TypeError) as error:
         raise DataError(f"recorded AEB scenario is incomplete: {error!r}") from None

@@ -7,7 +7,9 @@ of the direction of travel). Straight test-track roads and real OSM streets shar
 same class, so the simulator and the AEB controller never care which one they are on.
 
 Lanes are numbered from the right edge (lane 0 is the rightmost lane in the direction of
-the centreline; right-hand traffic), each ``width / lanes`` wide.
+the centreline; right-hand traffic), all equally wide. Strips of the carriageway that are
+not traffic lanes (cycle lanes, parking lanes: ``margins``) lie between the kerbs and the
+outermost lanes.
 """
 
 from __future__ import annotations
@@ -27,6 +29,22 @@ if TYPE_CHECKING:  # pragma: no cover
     from pytest_metamorphic.driving.osm import Road
 
 __all__ = ["RoadGeometry"]
+
+
+def _margins(value: Any, width: float) -> tuple[float, float]:
+    try:
+        right, left = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InvalidArgument(
+            f"margins={value!r} must be a (right, left) pair of widths in metres"
+        ) from None
+    if not (math.isfinite(right) and math.isfinite(left) and right >= 0 and left >= 0):
+        raise InvalidArgument(f"margins={value!r} must be finite widths >= 0")
+    if right + left >= width:
+        raise InvalidArgument(
+            f"margins={value!r} leave no room for lanes on a {width:g} m carriageway"
+        )
+    return right, left
 
 
 def _positive(value: Any, name: str) -> float:
@@ -51,9 +69,13 @@ class RoadGeometry:
     width : float
         Carriageway width in metres (> 0).
     lanes : int
-        Lanes across the carriageway (>= 1), equally wide.
+        Traffic lanes across the carriageway (>= 1), equally wide.
     name : str
         Shown in reports ("Euro NCAP straight road", "Goethestraße", ...).
+    margins : (float, float)
+        Widths in metres of the strips between the right / left kerb and the outermost
+        traffic lane (cycle lanes, parking lanes; default none). They are part of the
+        carriageway (a pedestrian there is on the road) but no lane.
 
     Notes
     -----
@@ -65,6 +87,7 @@ class RoadGeometry:
     width: float
     lanes: int = 1
     name: str = ""
+    margins: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         points = np.array(self.centerline, dtype=np.float64, copy=True)
@@ -86,7 +109,9 @@ class RoadGeometry:
             raise InvalidArgument(f"lanes={self.lanes!r} must be an int >= 1")
         if self.lanes < 1:
             raise InvalidArgument(f"lanes={self.lanes} must be >= 1")
+        margins = _margins(self.margins, width)
         points.setflags(write=False)
+        object.__setattr__(self, "margins", margins)
         object.__setattr__(self, "centerline", points)
         object.__setattr__(self, "width", width)
         object.__setattr__(self, "lanes", int(self.lanes))
@@ -115,6 +140,7 @@ class RoadGeometry:
         heading: float = 0.0,
         origin: Sequence[float] = (0.0, 0.0),
         name: str = "",
+        margins: tuple[float, float] = (0.0, 0.0),
     ) -> RoadGeometry:
         """A straight road of any width, from ``origin`` along ``heading`` (radians)."""
         length = _positive(length, "length")
@@ -125,21 +151,27 @@ class RoadGeometry:
             raise InvalidArgument(f"heading={heading!r} must be finite")
         direction = np.array([math.cos(heading), math.sin(heading)])
         label = name or f"straight {float(width):g} m road"
-        return cls(np.stack([start, start + length * direction]), width, lanes, label)
+        return cls(np.stack([start, start + length * direction]), width, lanes, label, margins)
 
     @classmethod
     def from_osm(
-        cls, road: Road, *, width: float | None = None, lanes: int | None = None
+        cls,
+        road: Road,
+        *,
+        width: float | None = None,
+        lanes: int | None = None,
+        margins: tuple[float, float] | None = None,
     ) -> RoadGeometry:
         """The geometry of an OSM :class:`~pytest_metamorphic.driving.osm.Road`.
 
-        ``width``/``lanes`` override the values read from its tags.
+        ``width``/``lanes``/``margins`` override the values read from its tags.
         """
         return cls(
             road.centerline,
             road.width if width is None else width,
             road.lanes if lanes is None else lanes,
             road.name or f"way {road.way_id}",
+            road.margins if margins is None else margins,
         )
 
     # -- measures ------------------------------------------------------------------------
@@ -150,12 +182,12 @@ class RoadGeometry:
 
     @property
     def lane_width(self) -> float:
-        return self.width / self.lanes
+        return (self.width - sum(self.margins)) / self.lanes
 
     def lane_bounds(self, lane: int = 0) -> tuple[float, float]:
         """``(d_right, d_left)`` of a lane (0 = rightmost)."""
         self._check_lane(lane)
-        right = -self.width / 2 + lane * self.lane_width
+        right = -self.width / 2 + self.margins[0] + lane * self.lane_width
         return right, right + self.lane_width
 
     def lane_center(self, lane: int = 0) -> float:
@@ -164,10 +196,12 @@ class RoadGeometry:
         return (right + left) / 2
 
     def lane_at(self, d: float) -> int | None:
-        """Index of the lane containing lateral offset ``d``, or None when off the road."""
-        if not -self.width / 2 <= d <= self.width / 2:
+        """Index of the lane containing lateral offset ``d``, or None outside the lanes
+        (off the road, or on a margin)."""
+        right = -self.width / 2 + self.margins[0]
+        if not right <= d <= self.width / 2 - self.margins[1]:
             return None
-        return min(int((d + self.width / 2) // self.lane_width), self.lanes - 1)
+        return min(int((d - right) // self.lane_width), self.lanes - 1)
 
     def _check_lane(self, lane: int) -> None:
         if isinstance(lane, bool) or not isinstance(lane, (int, np.integer)):
@@ -270,8 +304,12 @@ class RoadGeometry:
     def describe(self) -> str:
         kind = "straight" if len(self.centerline) == 2 else f"{len(self.centerline)}-vertex"
         label = self.name or "road"
+        strips = ""
+        if any(self.margins):
+            strips = ", margins {:g} / {:g} m".format(*self.margins)
         return (
-            f"{label} ({kind}, {self.length:.0f} m, {self.width:.2f} m wide, {self.lanes} lane(s))"
+            f"{label} ({kind}, {self.length:.0f} m, {self.width:.2f} m wide, "
+            f"{self.lanes} lane(s){strips})"
         )
 
     def __repr__(self) -> str:
@@ -287,6 +325,7 @@ class RoadGeometry:
             isinstance(other, RoadGeometry)
             and self.width == other.width
             and self.lanes == other.lanes
+            and self.margins == other.margins
             and self.name == other.name
             and self.centerline.shape == other.centerline.shape
             and bool((self.centerline == other.centerline).all())

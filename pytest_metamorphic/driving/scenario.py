@@ -17,6 +17,8 @@ follow-up that changes the ego speed re-synchronises the pedestrian automaticall
 * the dummy is *synchronised* as in the protocol: without braking, the front bumper reaches
   the dummy exactly when the dummy is at the impact position. Its start time is derived
   from that; when it would be before t = 0, the dummy is already walking at t = 0.
+  A follow-up may instead keep the dummy's own timing (``dummy_arrival_time``): a faster
+  car then reaches the collision point early, and the dummy can walk into its side.
 
 Road coordinates ``(s, d)`` are those of :class:`~pytest_metamorphic.driving.roads.RoadGeometry`
 (left positive). Right-hand traffic: the near side is the right (``d`` below the car's
@@ -42,11 +44,13 @@ __all__ = [
     "ADULT",
     "CHILD",
     "EURO_NCAP_CAR",
+    "KEEP_MODES",
     "KINDS",
     "OBSTRUCTION_LARGE",
     "OBSTRUCTION_SMALL",
     "PROTOCOLS",
     "Footprint",
+    "Keep",
     "PedestrianMotion",
     "Protocol",
     "Scenario",
@@ -57,6 +61,9 @@ __all__ = [
 ]
 
 KMH = 1 / 3.6
+Keep = Literal["ego_start", "time", "pedestrian"]
+#: What a speed follow-up keeps (:meth:`Scenario.with_ego_speed`).
+KEEP_MODES: tuple[str, ...] = ("ego_start", "time", "pedestrian")
 
 
 @dataclass(frozen=True)
@@ -276,6 +283,9 @@ class Scenario:
     dummy_speed_kmh : float, optional
         Overrides the protocol's dummy speed.
     vehicle : VehicleSpec
+    dummy_arrival_time : float, optional
+        When (s after the start) the dummy reaches the impact position. None (the
+        protocol): when the unbraked car's bumper does, ``time_to_collision_point``.
     """
 
     kind: str
@@ -286,6 +296,7 @@ class Scenario:
     ego_lane: int = 0
     dummy_speed_kmh: float | None = None
     vehicle: VehicleSpec = field(default=EURO_NCAP_CAR)
+    dummy_arrival_time: float | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in PROTOCOLS:
@@ -306,6 +317,13 @@ class Scenario:
                 raise InvalidArgument(f"dummy_speed_kmh={self.dummy_speed_kmh!r} must be > 0")
         if not isinstance(self.vehicle, VehicleSpec):
             raise InvalidArgument(f"vehicle={self.vehicle!r} must be a VehicleSpec")
+        if self.dummy_arrival_time is not None:
+            arrival = _finite(self.dummy_arrival_time, "dummy_arrival_time")
+            if arrival <= 0:
+                raise InvalidArgument(
+                    f"dummy_arrival_time={self.dummy_arrival_time!r} must be > 0 seconds"
+                )
+            object.__setattr__(self, "dummy_arrival_time", arrival)
         object.__setattr__(self, "ego_speed_kmh", speed)
         object.__setattr__(self, "ego_distance", distance)
         object.__setattr__(self, "conflict_s", float(self.conflict_s))
@@ -329,6 +347,13 @@ class Scenario:
     def time_to_collision_point(self) -> float:
         """Seconds until the bumper would touch the dummy at constant speed."""
         return self.ego_distance / self.ego_speed
+
+    @property
+    def dummy_arrival(self) -> float:
+        """When the dummy reaches the impact position (s after the start)."""
+        if self.dummy_arrival_time is None:
+            return self.time_to_collision_point
+        return self.dummy_arrival_time
 
     @property
     def impact_offset(self) -> float:
@@ -364,7 +389,7 @@ class Scenario:
         motion = PedestrianMotion(
             protocol.dummy, s0, d0, ds, dd, speed, protocol.acceleration_distance, 0.0
         )
-        start = self.time_to_collision_point - motion.time_to_walk(walk)
+        start = self.dummy_arrival - motion.time_to_walk(walk)
         return dataclasses.replace(motion, start_time=start)
 
     @property
@@ -389,20 +414,24 @@ class Scenario:
         return (StaticActor(small, small_s, lateral), StaticActor(large, large_s, lateral))
 
     # -- transforms -----------------------------------------------------------------------
-    def with_ego_speed(
-        self, speed_kmh: float, *, keep: Literal["ego_start", "time"] = "ego_start"
-    ) -> Scenario:
-        """The same test at another car speed, re-synchronised (the speed follow-up).
+    def with_ego_speed(self, speed_kmh: float, *, keep: Keep = "ego_start") -> Scenario:
+        """The same test at another car speed (the speed follow-up).
 
         Parameters
         ----------
         speed_kmh : float
-        keep : {"ego_start", "time"}
-            ``"ego_start"`` (default, Iqbal's follow-up): the car starts at the same place,
-            so its time to the collision point becomes ``ego_distance / v'`` and the dummy's
-            start moves so that it still reaches the impact position at that moment.
-            ``"time"``: the car's start moves so that the time to the collision point stays
-            the same (the protocol's 6 s rule), and the dummy is unchanged.
+        keep : {"ego_start", "time", "pedestrian"}
+            What stays as in this scenario:
+
+            ``"ego_start"`` (default): the car's start; its time to the collision point
+            becomes ``ego_distance / v'`` and the dummy's start moves so that it still
+            reaches the impact position at that moment (re-synchronised).
+            ``"time"``: the car's time to the collision point (the protocol's 6 s rule);
+            its start moves, the dummy is unchanged.
+            ``"pedestrian"`` (Iqbal's follow-up: "the pedestrian's start adjusted so [its]
+            time to the collision point stays the same"): the car's start *and* the
+            dummy's motion; a faster car reaches the collision point before the dummy, a
+            slower one after it, so the dummy may walk into the car's side.
         """
         speed = _finite(speed_kmh, "speed_kmh")
         if speed <= 0:
@@ -412,17 +441,27 @@ class Scenario:
         if keep == "time":
             distance = self.ego_distance * speed / self.ego_speed_kmh
             return dataclasses.replace(self, ego_speed_kmh=speed, ego_distance=distance)
-        raise InvalidArgument(f"keep={keep!r} must be 'ego_start' or 'time'")
+        if keep == "pedestrian":
+            return dataclasses.replace(
+                self, ego_speed_kmh=speed, dummy_arrival_time=self.dummy_arrival
+            )
+        raise InvalidArgument(f"keep={keep!r} must be one of {list(KEEP_MODES)}")
 
     def describe(self) -> str:
+        timing = ""
+        if self.dummy_arrival_time is not None:
+            timing = f", dummy at the impact position at {self.dummy_arrival_time:.2f} s"
         return (
             f"{self.kind} at {self.ego_speed_kmh:g} km/h on {self.road.name or 'a road'} "
             f"({self.road.width:g} m, lane {self.ego_lane} of {self.road.lanes}), car "
             f"{self.ego_distance:.1f} m / {self.time_to_collision_point:.2f} s from impact"
+            f"{timing}"
         )
 
     def __repr__(self) -> str:
         extra = "" if self.dummy_speed_kmh is None else f", dummy_speed_kmh={self.dummy_speed_kmh}"
+        if self.dummy_arrival_time is not None:
+            extra += f", dummy_arrival_time={self.dummy_arrival_time:g}"
         return (
             f"Scenario({self.kind!r}, road={self.road!r}, ego_speed_kmh={self.ego_speed_kmh:g}, "
             f"conflict_s={self.conflict_s:g}, ego_distance={self.ego_distance:g}, "
@@ -442,6 +481,7 @@ class Scenario:
             and (self.ego_speed_kmh, self.conflict_s, self.ego_distance, self.ego_lane)
             == (other.ego_speed_kmh, other.conflict_s, other.ego_distance, other.ego_lane)
             and self.dummy_speed_kmh == other.dummy_speed_kmh
+            and self.dummy_arrival_time == other.dummy_arrival_time
             and self.vehicle == other.vehicle
         )
 

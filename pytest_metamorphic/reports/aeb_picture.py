@@ -47,7 +47,10 @@ def _draw(ax: Any, run: Run) -> None:
     start = scenario.ego_start_s - scenario.vehicle.length - 2.0
     stop = min(scenario.conflict_s + _BEYOND, road.length)
     s = np.linspace(max(start, 0.0), stop, 200)
-    for d in np.linspace(-road.width / 2, road.width / 2, road.lanes + 1):
+    # Kerbs solid black, lane lines (and the edges of cycle/parking lanes) dashed grey.
+    bounds = [road.lane_bounds(lane)[0] for lane in range(road.lanes)]
+    bounds += [road.lane_bounds(road.lanes - 1)[1], -road.width / 2, road.width / 2]
+    for d in sorted({round(d, 6) for d in bounds}):
         edge = road.to_world(s, np.full_like(s, d))
         outer = abs(abs(d) - road.width / 2) < 1e-9
         ax.plot(edge[:, 0], edge[:, 1], color="black" if outer else "#aaaaaa",

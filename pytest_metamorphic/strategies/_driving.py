@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any, Literal
+from typing import Any
 
 from hypothesis import strategies as st
 from hypothesis.strategies import SearchStrategy
@@ -17,7 +17,15 @@ from hypothesis.strategies import SearchStrategy
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.roads import RoadGeometry
-from pytest_metamorphic.driving.scenario import INITIAL_TTC, KINDS, PROTOCOLS, Scenario, euro_ncap
+from pytest_metamorphic.driving.scenario import (
+    INITIAL_TTC,
+    KEEP_MODES,
+    KINDS,
+    PROTOCOLS,
+    Keep,
+    Scenario,
+    euro_ncap,
+)
 
 __all__ = ["aeb_scenarios", "ego_speed_changes", "straight_roads"]
 
@@ -144,8 +152,8 @@ def _check_speed_options(
         raise InvalidArgument(
             f"min_speed_kmh={min_speed_kmh} must be <= max_speed_kmh={max_speed_kmh}"
         )
-    if keep not in ("ego_start", "time"):
-        raise InvalidArgument(f"keep={keep!r} must be 'ego_start' or 'time'")
+    if keep not in KEEP_MODES:
+        raise InvalidArgument(f"keep={keep!r} must be one of {list(KEEP_MODES)}")
 
 
 def ego_speed_changes(
@@ -154,7 +162,7 @@ def ego_speed_changes(
     min_speed_kmh: float = 15.0,
     max_speed_kmh: float = 100.0,
     step_kmh: float = 1.0,
-    keep: Literal["ego_start", "time"] = "ego_start",
+    keep: Keep = "ego_start",
 ) -> SearchStrategy[Followup]:
     """The speed follow-up: the source at another car speed, pedestrian re-synchronised.
 
@@ -169,9 +177,10 @@ def ego_speed_changes(
     source : Scenario
     min_speed_kmh, max_speed_kmh, step_kmh : float
         Iqbal's protocol: 15..100 km/h in 1 km/h steps.
-    keep : {"ego_start", "time"}
+    keep : {"ego_start", "time", "pedestrian"}
         See :meth:`Scenario.with_ego_speed` (default: the car starts where it did and the
-        pedestrian's start moves).
+        pedestrian's start moves; ``"pedestrian"``, Iqbal's campaign: the pedestrian
+        walks as in the source, so a faster car arrives early).
     """
     if not isinstance(source, Scenario):
         raise InvalidArgument(f"source={source!r} must be a Scenario")

@@ -10,6 +10,7 @@ from pytest_metamorphic import DataError, InvalidArgument
 from pytest_metamorphic.driving.aeb import mutant_fixed_lane
 from pytest_metamorphic.driving.campaign import (
     CampaignSource,
+    Street,
     default_sources,
     format_campaign,
     iqbal_campaign,
@@ -25,24 +26,59 @@ def test_default_sources_are_the_test_road_and_two_real_streets(shared_data: Pat
     sources = default_sources(shared_data)
     assert [s.scenario.road.name for s in sources] == [
         "Euro NCAP straight 10 m road",
-        "Goethestraße",
         "8th Street",
+        "7th Street",
     ]
     for source in sources:
         scenario = source.scenario
         assert (scenario.kind, scenario.ego_speed_kmh) == ("CPNCO-50", 20.0)
         assert scenario.time_to_collision_point == pytest.approx(6.0)
         assert 0 <= scenario.ego_start_s < scenario.conflict_s <= scenario.road.length
-    assert sources[2].name == "8th Street, West Oakland, CA (OSM way 6358365)"
-    street = sources[1].scenario
-    assert street.road.width == 6.0 and street.road.lanes == 2
-    assert street.ego_offset == pytest.approx(-1.5)  # right-hand lane of a two-way street
+        # The fault can only show where the road reaches beyond the mutant's 1.8 m
+        # half-corridor on the side the child comes from.
+        kerb = scenario.ego_offset + scenario.road.width / 2
+        assert kerb > 1.8
+    assert sources[1].name == "8th Street, West Oakland, CA (OSM way 6358365)"
+    eighth, seventh = sources[1].scenario, sources[2].scenario
+    # Two 3 m lanes and a painted cycle lane on each side (cycleway=lane).
+    assert (eighth.road.width, eighth.road.lanes, eighth.road.margins) == (9.0, 2, (1.5, 1.5))
+    assert eighth.ego_offset == pytest.approx(-1.5)  # right-hand traffic lane
+    # One-way arterial, lanes=2 (3.25 m each): the car in the left lane.
+    assert (seventh.road.width, seventh.road.lanes, seventh.ego_lane) == (6.5, 2, 1)
+    assert seventh.ego_offset == pytest.approx(1.625)
+    missing = Street("osm_osmnx/West-Oakland.osm.bz2", "Nowhere Rd", "")
     with pytest.raises(DataError, match="no drivable way named"):
-        default_sources(shared_data, streets=[("osm_osmnx/West-Oakland.osm.bz2", "Nowhere Rd", "")])
+        default_sources(shared_data, streets=[missing])
+    with pytest.raises(InvalidArgument, match="Street"):
+        default_sources(shared_data, streets=[("osm_osmnx/x.osm", "A", "")])  # type: ignore[list-item]
+
+
+#: Around the source speed (20 km/h), where a faster car arrives early, and a few above.
+PAPER_SPEEDS = (*range(15, 32), 40, 60, 80, 100)
+
+
+def test_default_campaign_is_the_papers_table(shared_data: Path) -> None:
+    """Iqbal's result: the 3.6 m-lane controller lets the pedestrian walk into the car's
+    right side on every source, avoidably; the correct controller never does."""
+    rows = iqbal_campaign(default_sources(shared_data), speeds_kmh=PAPER_SPEEDS)
+    assert len(rows) == 6
+    for row in rows:
+        assert row.keep == "pedestrian" and not row.source_collided
+        if row.controller == "reference":
+            assert row.collisions == (), format_campaign([row])
+            continue
+        assert row.avoidable_violations, format_campaign([row])
+        sides = [c for c in row.violations if c.location == "side"]
+        assert sides and all(c.side == "right" and c.avoidable for c in sides)
+        # The car is early: violations only above the source speed.
+        assert row.lowest_violating_speed_kmh > row.source_speed_kmh
+    text = format_campaign(rows)
+    assert "right side at" in text and "(avoidable, violation)" in text
 
 
 def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path) -> None:
-    rows = iqbal_campaign(default_sources(shared_data, kind="CPFA-50"), speeds_kmh=SPEEDS)
+    sources = default_sources(shared_data, kind="CPFA-50")
+    rows = iqbal_campaign(sources, speeds_kmh=SPEEDS, keep="ego_start")
     assert [(r.source.split(" (")[0], r.controller) for r in rows][:2] == [
         ("Euro NCAP straight 10 m road", "reference"),
         ("Euro NCAP straight 10 m road", "3.6 m lane mutant"),
@@ -53,10 +89,9 @@ def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path)
         # Whatever else happens, the reference never misses an avoidable collision.
         if row.controller == "reference":
             assert row.avoidable_violations == ()
-    # On the real streets (6 m, two 3 m lanes) the far-side adult crosses the oncoming lane
-    # first: the reference brakes as it steps onto the road, the mutant only 1.8 m out.
-    street_mutants = [row for row in rows[2:] if row.controller == "3.6 m lane mutant"]
-    assert all(len(row.avoidable_violations) == 4 for row in street_mutants)
+    # On 8th Street the far-side adult crosses the oncoming lane first: the reference
+    # brakes as it steps onto the road, the mutant only 1.8 m from the car's path.
+    assert len(rows[3].avoidable_violations) == 4
     ncap_mutant = rows[1]
     assert [c.speed_kmh for c in ncap_mutant.avoidable_violations] == [60, 70, 80, 90]
     assert ncap_mutant.lowest_violating_speed_kmh == 60
@@ -72,7 +107,9 @@ def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path)
 
 def test_campaign_reports_collisions_of_colliding_sources(shared_data: Path) -> None:
     source = CampaignSource("fast source", euro_ncap("CPFA-50", ego_speed_kmh=80))
-    (row,) = iqbal_campaign([source], {"mutant": mutant_fixed_lane}, speeds_kmh=(70, 90))
+    (row,) = iqbal_campaign(
+        [source], {"mutant": mutant_fixed_lane}, speeds_kmh=(70, 90), keep="ego_start"
+    )
     assert row.source_collided and row.violations == ()
     assert len(row.collisions) == 2 and all(not c.violation for c in row.collisions)
     assert "source collided too" in format_campaign([row])
@@ -91,13 +128,13 @@ def test_command_line(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert main(["--data", str(shared_data), "--kind", "CPNA-25", "--min-speed", "85",
                  "--max-speed", "88"]) == 0  # fmt: skip
     out = capsys.readouterr().out
-    assert "CPNA-25, source 20 km/h, car start kept, pedestrian re-timed" in out
+    assert "CPNA-25, source 20 km/h, car start and pedestrian timing kept" in out
     assert "24 follow-ups" in out
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["CPNCO-50", "CPNA-25", "CPFA-50"])
-@pytest.mark.parametrize("keep", ["ego_start", "time"])
+@pytest.mark.parametrize("keep", ["pedestrian", "ego_start", "time"])
 def test_full_iqbal_campaign(shared_data: Path, kind: str, keep: str) -> None:
     """85 follow-ups per source: the reference never has an avoidable violation."""
     sources = default_sources(shared_data, kind=kind)
@@ -107,5 +144,10 @@ def test_full_iqbal_campaign(shared_data: Path, kind: str, keep: str) -> None:
         if row.controller == "reference":
             assert row.avoidable_violations == (), format_campaign([row])
     mutant_on_test_road = rows[1]
-    if kind != "CPNCO-50" or keep == "time":
+    if kind != "CPNCO-50" or keep != "ego_start":
         assert mutant_on_test_road.avoidable_violations, format_campaign(rows)
+    if keep == "pedestrian":
+        # Iqbal's follow-up: the fault shows on every source, the reference is clean.
+        for row in rows:
+            if row.controller != "reference" and not (kind == "CPFA-50" and "7th" in row.source):
+                assert row.avoidable_violations, format_campaign([row])

@@ -9,6 +9,7 @@ import pytest
 
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.comparison import first_difference
+from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.kinematics import (
     BrakeCommand,
     Observation,
@@ -244,6 +245,8 @@ def test_scenario_validation_and_transforms() -> None:
     assert faster.pedestrian_start_time == pytest.approx(scenario.pedestrian_start_time - 3.0)
     with pytest.raises(InvalidArgument, match="keep"):
         scenario.with_ego_speed(40, keep="distance")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="dummy_arrival_time"):
+        dataclasses.replace(scenario, dummy_arrival_time=0.0)
     with pytest.raises(InvalidArgument, match="kind"):
         euro_ncap("CPXX-50")
     with pytest.raises(InvalidArgument, match="ego_speed_kmh"):
@@ -252,3 +255,40 @@ def test_scenario_validation_and_transforms() -> None:
         euro_ncap("CPFA-50", ego_lane=1)
     with pytest.raises(InvalidArgument, match="brake_delay"):
         VehicleSpec(brake_delay=-1)
+
+
+def test_keeping_the_pedestrian_timing_makes_a_faster_car_early() -> None:
+    """Iqbal's follow-up: car start and pedestrian motion kept, only the speed changes."""
+    source = euro_ncap("CPNCO-50", ego_speed_kmh=20)
+    early = source.with_ego_speed(25, keep="pedestrian")
+    assert early.ego_start_s == source.ego_start_s
+    assert early.time_to_collision_point == pytest.approx(source.time_to_collision_point * 0.8)
+    assert early.pedestrian() == source.pedestrian()
+    assert early.dummy_arrival == pytest.approx(6.0)
+    # Kept again in a follow-up of the follow-up, not re-derived from the new speed.
+    assert early.with_ego_speed(30, keep="pedestrian").pedestrian() == source.pedestrian()
+    assert "dummy at the impact position at 6.00 s" in early.describe()
+    # Without braking, a car 1.2 s early is still beside the dummy's path when the dummy
+    # arrives; at 40 km/h it is through before.
+    assert simulate(early).collision.location == "side"  # type: ignore[union-attr]
+    assert simulate(source.with_ego_speed(40, keep="pedestrian")).avoided
+    # The 3.6 m-lane AEB ignores the child until it is 1.8 m from the car's path: by then
+    # the car is beside it, and the child walks into its right side.
+    result = simulate(early, mutant_fixed_lane())
+    assert result.collision is not None
+    assert (result.collision.location, result.collision.side) == ("side", "right")
+    assert result.collision.time > early.time_to_collision_point
+    assert simulate(early, reference_controller()).avoided
+    assert physically_avoidable(early).avoidable
+
+
+def test_a_car_standing_in_the_dummys_path_is_not_a_collision() -> None:
+    """Euro NCAP ends a test at standstill: a dummy walking into the standing car later
+    is no collision of the car (the reference stops late but stands before the contact)."""
+    early = euro_ncap("CPNCO-50", ego_speed_kmh=20).with_ego_speed(41, keep="pedestrian")
+    result = simulate(early, reference_controller())
+    assert result.avoided and result.final_speed == 0
+    motion = early.pedestrian()
+    assert result.end_time < early.dummy_arrival
+    # The car stopped across the dummy's path (its front beyond the crossing line).
+    assert result.ego_s > motion.s0

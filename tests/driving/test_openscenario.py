@@ -83,6 +83,23 @@ def test_an_osm_street_becomes_an_opendrive_polyline_of_its_length(tmp_path: Pat
     assert float(offset.get("a")) == pytest.approx(geometry.width / 2)
 
 
+def test_cycle_lanes_and_the_dummys_own_timing_are_exported(tmp_path: Path) -> None:
+    road = RoadGeometry.straight(length=200, width=9, lanes=2, margins=(1.5, 1.5))
+    source = euro_ncap("CPNCO-50", ego_speed_kmh=20, road=road)
+    early = source.with_ego_speed(25, keep="pedestrian")
+    files = openscenario.write_openscenario(early, tmp_path)
+    openscenario.validate_openscenario(files.xosc)
+    lanes = next(iter(ElementTree.parse(files.xodr).getroot().iter("right"))).findall("lane")
+    kinds = [(lane.get("type"), float(lane.find("width").get("a"))) for lane in lanes]
+    assert kinds == [("shoulder", 1.5), ("driving", 3.0), ("driving", 3.0), ("shoulder", 1.5)]
+    # The dummy starts where and when it did in the source, the car sooner there.
+    root = ElementTree.parse(files.xosc).getroot()
+    original = openscenario.write_openscenario(source, tmp_path / "source").xosc
+    before = ElementTree.parse(original).getroot()
+    assert _teleport(root, "pedestrian") == pytest.approx(_teleport(before, "pedestrian"))
+    assert _teleport(root, "ego") == pytest.approx(_teleport(before, "ego"))
+
+
 def test_a_file_that_breaks_the_schema_is_named(tmp_path: Path) -> None:
     files = openscenario.write_openscenario(euro_ncap("CPNA-25", ego_speed_kmh=20), tmp_path)
     text = files.xosc.read_text().replace("<Storyboard>", "<Storyboard><Nonsense/>", 1)
@@ -104,10 +121,15 @@ def test_bad_arguments_are_named(tmp_path: Path) -> None:
 
 
 def test_scenarios_round_trip_through_json_exactly() -> None:
-    road = RoadGeometry(np.array([[0.0, 0.0], [80.0, 5.0], [160.0, -3.0]]), 12.0, 3, "bent")
+    road = RoadGeometry(
+        np.array([[0.0, 0.0], [80.0, 5.0], [160.0, -3.0]]), 12.0, 3, "bent", (1.5, 0.5)
+    )
     scenario = euro_ncap("CPFA-50", ego_speed_kmh=42, road=road, conflict_s=120.0, ego_lane=1)
     again = scenario_from_json(json.loads(json.dumps(scenario_to_json(scenario))))
-    assert again == scenario
+    assert again == scenario and again.road.margins == (1.5, 0.5)
+    early = scenario.with_ego_speed(50, keep="pedestrian")
+    again = scenario_from_json(json.loads(json.dumps(scenario_to_json(early))))
+    assert again == early and again.dummy_arrival_time == early.dummy_arrival_time
     assert math.isclose(again.pedestrian().start_time, scenario.pedestrian().start_time)
     with pytest.raises(DataError, match="not a recorded AEB scenario"):
         scenario_from_json({"kind": "CPNA-25"})

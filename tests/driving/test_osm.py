@@ -16,6 +16,7 @@ from pytest_metamorphic.driving.osm import (
     LocalProjection,
     load_roads,
     parse_lanes,
+    parse_margins,
     parse_oneway,
     parse_width,
     read_osm,
@@ -306,3 +307,53 @@ def test_bad_arguments() -> None:
         LocalProjection(95.0, 0.0)
     with pytest.raises(InvalidArgument, match="directed"):
         street_graph("x.osm", directed="yes")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("tags", "oneway", "reverse", "margins"),
+    [
+        ({}, False, False, (0.0, 0.0)),
+        ({"cycleway": "lane"}, False, False, (1.5, 1.5)),
+        ({"cycleway": "lane"}, True, False, (1.5, 0.0)),  # one-way: with the traffic
+        ({"cycleway": "track"}, False, False, (0.0, 0.0)),  # off the carriageway
+        ({"cycleway:right": "lane", "cycleway:left": "no"}, False, False, (1.5, 0.0)),
+        ({"cycleway:right": "lane"}, True, True, (0.0, 1.5)),  # oneway=-1 swaps sides
+        ({"cycleway:both": "lane", "cycleway": "no"}, False, False, (1.5, 1.5)),
+        ({"parking:lane:both": "parallel"}, False, False, (2.0, 2.0)),
+        ({"parking:lane:right": "diagonal"}, False, False, (4.5, 0.0)),
+        ({"parking:lane:left": "no_stopping"}, False, False, (0.0, 0.0)),
+        ({"parking:both": "lane"}, False, False, (2.0, 2.0)),
+        ({"parking:right": "lane", "parking:right:orientation": "perpendicular"}, False, False,
+         (5.0, 0.0)),
+        ({"parking:both": "street_side"}, False, False, (0.0, 0.0)),
+        ({"cycleway": "lane", "parking:lane:right": "parallel"}, False, False, (3.5, 1.5)),
+    ],
+)  # fmt: skip
+def test_cycle_and_parking_lanes_on_the_carriageway(
+    tags: dict[str, str], oneway: bool, reverse: bool, margins: tuple[float, float]
+) -> None:
+    assert parse_margins(tags, oneway=oneway, reverse=reverse) == margins
+
+
+def test_cycle_lanes_widen_the_carriageway_beside_the_lanes(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    roads = {r.way_id: r for r in load_roads(shared_data / OAKLAND, highway=DRIVABLE_HIGHWAYS)}
+    eighth = roads[6358365]  # 8th Street: cycleway=lane, no width tag
+    assert (eighth.width, eighth.lanes, eighth.margins) == (9.0, 2, (1.5, 1.5))
+    assert eighth.lane_width == 3.0 and "cycle/parking lanes 1.5 / 1.5 m" in eighth.describe()
+    path = _write(
+        tmp_path,
+        """<osm version="0.6">
+  <node id="1" lat="0" lon="0"/><node id="2" lat="0" lon="0.001"/>
+  <way id="1"><nd ref="1"/><nd ref="2"/><tag k="highway" v="residential"/>
+    <tag k="width" v="12"/><tag k="parking:lane:both" v="parallel"/></way>
+  <way id="2"><nd ref="1"/><nd ref="2"/><tag k="highway" v="residential"/>
+    <tag k="width" v="6"/><tag k="parking:lane:both" v="parallel"/></way>
+</osm>""",
+    )
+    tagged, narrow = load_roads(path)
+    # A width tag is kerb to kerb: the parking lanes are inside it ...
+    assert (tagged.width, tagged.lane_width) == (12.0, 4.0)
+    # ... unless it leaves under 2.5 m per lane: then it measured the traffic lanes only.
+    assert (narrow.width, narrow.lane_width) == (10.0, 3.0)

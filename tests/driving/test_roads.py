@@ -86,12 +86,24 @@ def test_osm_road_geometry(shared_data: Path) -> None:
     roads = load_roads(shared_data / "osm_osmnx/West-Oakland.osm.bz2")
     eighth = max((r for r in roads if r.name == "8th Street"), key=lambda r: r.length)
     geometry = RoadGeometry.from_osm(eighth)
-    assert geometry.name == "8th Street" and geometry.width == 6.0 and geometry.lanes == 2
+    assert geometry.name == "8th Street" and geometry.width == 9.0 and geometry.lanes == 2
+    assert geometry.margins == (1.5, 1.5)  # its painted cycle lanes
     assert geometry.length == pytest.approx(eighth.length)
     s, d = geometry.to_frenet(eighth.centerline)
     np.testing.assert_allclose(d, 0, atol=1e-9)
     assert np.all(np.diff(s) > 0)
-    assert RoadGeometry.from_osm(eighth, width=10, lanes=1).lane_width == 10
+    assert RoadGeometry.from_osm(eighth, width=10, lanes=1, margins=(0, 0)).lane_width == 10
+
+
+def test_margins_sit_between_the_kerbs_and_the_lanes() -> None:
+    road = RoadGeometry.straight(length=50, width=10, lanes=2, margins=(2.0, 1.0))
+    assert road.lane_width == 3.5
+    assert road.lane_bounds(0) == (-3.0, 0.5) and road.lane_bounds(1) == (0.5, 4.0)
+    assert road.lane_center(0) == pytest.approx(-1.25)
+    assert [road.lane_at(d) for d in (-4.5, -2.9, 0.6, 4.5, 5.5)] == [None, 0, 1, None, None]
+    assert "margins 2 / 1 m" in road.describe()
+    assert not road.equals(RoadGeometry.straight(length=50, width=10, lanes=2))
+    assert road.contains([[10.0, -4.9]]).all()  # a cycle lane is on the carriageway
 
 
 @pytest.mark.parametrize(
@@ -103,6 +115,9 @@ def test_osm_road_geometry(shared_data: Path) -> None:
         ({"centerline": [[0, 0], [1, 0]], "width": 0}, "width"),
         ({"centerline": [[0, 0], [1, 0]], "width": 5, "lanes": 0}, "lanes"),
         ({"centerline": [[0, 0], [1, 0]], "width": 5, "lanes": 1.5}, "lanes"),
+        ({"centerline": [[0, 0], [1, 0]], "width": 5, "margins": (3, 2)}, "no room for lanes"),
+        ({"centerline": [[0, 0], [1, 0]], "width": 5, "margins": (-1, 0)}, "margins"),
+        ({"centerline": [[0, 0], [1, 0]], "width": 5, "margins": 1.5}, r"\(right, left\)"),
     ],
 )
 def test_bad_geometry_is_refused(kwargs: dict, message: str) -> None:

@@ -192,7 +192,9 @@ class _Run:
         self.controller = controller
         self.dt = dt
         self.sensor = sensor
-        self.t_end = scenario.time_to_collision_point + _EXTRA_TIME
+        # Long enough for the car to reach the collision point and for the dummy to walk
+        # there (later than the car when a follow-up keeps the dummy's own timing).
+        self.t_end = max(scenario.time_to_collision_point, scenario.dummy_arrival) + _EXTRA_TIME
         self.steps = math.ceil(self.t_end / dt)
         self.times = np.arange(self.steps + 1) * dt
         self.actors = _actors(scenario, self.times)
@@ -290,6 +292,8 @@ class _Run:
                 collision = self._collision(self._contact(s, t, None) or hit, t, s, v)
                 break
             s, v, t = s_next, v_next, t_next
+            # Euro NCAP ends a test when the car stands still: a dummy that walks into the
+            # standing car afterwards is not a collision of the car.
             if (braked and v <= _STANDSTILL) or self._passed_everyone(s, k + 1):
                 break
         return SimulationResult(

@@ -2,7 +2,7 @@
 
 One concept per module: :mod:`.reader` (expat with every way out of the document switched
 off, size caps against bz2 bombs), :mod:`.projection` (local metres about the data's
-centre), :mod:`.tags` (``width``, ``lanes``, ``oneway`` and per-class defaults),
+centre), :mod:`.tags` (``width``, ``lanes``, ``oneway``, cycle and parking lanes, defaults),
 :mod:`.roads` (drivable ways as :class:`Road` geometries) and :mod:`.graph` (street graphs
 for routing).
 
@@ -19,18 +19,23 @@ from pytest_metamorphic.driving.osm.projection import EARTH_RADIUS_M, LocalProje
 from pytest_metamorphic.driving.osm.reader import OsmData, OsmNode, OsmWay, read_osm
 from pytest_metamorphic.driving.osm.roads import Road, load_roads
 from pytest_metamorphic.driving.osm.tags import (
+    CYCLE_LANE_WIDTH,
     DRIVABLE_HIGHWAYS,
     HIGHWAY_DEFAULTS,
+    PARKING_LANE_WIDTHS,
     HighwayDefaults,
     parse_lanes,
+    parse_margins,
     parse_oneway,
     parse_width,
 )
 
 __all__ = [
+    "CYCLE_LANE_WIDTH",
     "DRIVABLE_HIGHWAYS",
     "EARTH_RADIUS_M",
     "HIGHWAY_DEFAULTS",
+    "PARKING_LANE_WIDTHS",
     "HighwayDefaults",
     "LocalProjection",
     "OsmData",
@@ -40,6 +45,7 @@ __all__ = [
     "StreetGraph",
     "load_roads",
     "parse_lanes",
+    "parse_margins",
     "parse_oneway",
     "parse_width",
     "read_osm",

@@ -19,7 +19,13 @@ from pytest_metamorphic.driving.osm.reader import (
     OsmWay,
     read_osm,
 )
-from pytest_metamorphic.driving.osm.tags import _defaults, parse_lanes, parse_oneway, parse_width
+from pytest_metamorphic.driving.osm.tags import (
+    _defaults,
+    parse_lanes,
+    parse_margins,
+    parse_oneway,
+    parse_width,
+)
 
 __all__ = ["Road", "load_roads"]
 
@@ -39,9 +45,9 @@ class Road:
         Vertices in local metres (x east, y north), k >= 2, in the direction of travel
         for one-way roads (``oneway=-1`` ways are reversed).
     width : float
-        Carriageway width in metres.
+        Carriageway width in metres (kerb to kerb).
     lanes : int
-        Number of lanes (both directions).
+        Number of traffic lanes (both directions).
     oneway : bool
     width_source : {"width", "lanes", "default"}
         Where ``width`` came from: the ``width`` tag, ``lanes`` x the class's lane width,
@@ -51,6 +57,9 @@ class Road:
     tags : mapping
     projection : LocalProjection
         The frame of ``centerline``.
+    margins : (float, float)
+        Cycle and parking lanes on the carriageway, right / left of the direction of
+        ``centerline`` (:func:`~pytest_metamorphic.driving.osm.tags.parse_margins`).
     """
 
     way_id: int
@@ -64,6 +73,7 @@ class Road:
     node_ids: tuple[int, ...]
     tags: Mapping[str, str]
     projection: LocalProjection
+    margins: tuple[float, float] = (0.0, 0.0)
 
     @property
     def length(self) -> float:
@@ -72,14 +82,17 @@ class Road:
 
     @property
     def lane_width(self) -> float:
-        return self.width / self.lanes
+        return (self.width - sum(self.margins)) / self.lanes
 
     def describe(self) -> str:
         label = self.name or f"way {self.way_id}"
         direction = "one-way" if self.oneway else "two-way"
+        strips = ""
+        if any(self.margins):
+            strips = ", cycle/parking lanes {:g} / {:g} m".format(*self.margins)
         return (
             f"{label} ({self.highway}, {self.length:.0f} m, {self.width:.2f} m wide from "
-            f"{self.width_source}, {self.lanes} lane(s), {direction})"
+            f"{self.width_source}, {self.lanes} lane(s){strips}, {direction})"
         )
 
     def __repr__(self) -> str:
@@ -148,15 +161,24 @@ def _selected_ways(
             yield way, node_ids
 
 
-def _road_width(tags: Mapping[str, str], highway: str, oneway: bool) -> tuple[float, int, str]:
+# A ``width`` tag that leaves less than this per lane beside the tagged cycle and parking
+# lanes measured the traffic lanes only: the strips are added to it.
+_MIN_TAGGED_LANE = 2.5
+
+
+def _road_width(
+    tags: Mapping[str, str], highway: str, oneway: bool, margins: tuple[float, float]
+) -> tuple[float, int, str]:
     defaults = _defaults(highway)
     lanes_tag = parse_lanes(tags.get("lanes"))
     lanes = lanes_tag or (defaults.oneway_lanes if oneway else defaults.lanes)
     width_tag = parse_width(tags.get("width"))
     if width_tag is not None:
+        if width_tag - sum(margins) < _MIN_TAGGED_LANE * lanes:
+            width_tag += sum(margins)
         return width_tag, lanes, "width"
     source = "lanes" if lanes_tag else "default"
-    return lanes * defaults.lane_width, lanes, source
+    return lanes * defaults.lane_width + sum(margins), lanes, source
 
 
 def load_roads(
@@ -191,7 +213,8 @@ def load_roads(
     -----
     Width: the ``width`` tag (see :func:`parse_width`), else ``lanes`` x the class's lane
     width, else the class's default lane count (fewer for one-way roads) x lane width
-    (:data:`HIGHWAY_DEFAULTS`).
+    (:data:`HIGHWAY_DEFAULTS`); plus, without a ``width`` tag, the cycle and parking lanes
+    on the carriageway (:func:`parse_margins`), which the traffic lanes do not include.
     """
     wanted = _highway_filter(highway)
     data = read_osm(path, max_bytes=max_bytes)
@@ -204,7 +227,8 @@ def load_roads(
         lat = np.array([data.nodes[n].lat for n in node_ids])
         lon = np.array([data.nodes[n].lon for n in node_ids])
         highway_class = way.tags["highway"]
-        width, lanes, source = _road_width(way.tags, highway_class, oneway)
+        margins = parse_margins(way.tags, oneway=oneway, reverse=reverse)
+        width, lanes, source = _road_width(way.tags, highway_class, oneway, margins)
         roads.append(
             Road(
                 way_id=way.id,
@@ -218,6 +242,7 @@ def load_roads(
                 node_ids=node_ids,
                 tags=way.tags,
                 projection=projection,
+                margins=margins,
             )
         )
     return roads

@@ -1,4 +1,5 @@
-"""OSM tags: drivable ``highway`` classes, ``width``, ``lanes``, ``oneway``, per-class defaults."""
+"""OSM tags: drivable ``highway`` classes, ``width``, ``lanes``, ``oneway``, cycle and
+parking lanes on the carriageway, per-class defaults."""
 
 from __future__ import annotations
 
@@ -8,10 +9,13 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 __all__ = [
+    "CYCLE_LANE_WIDTH",
     "DRIVABLE_HIGHWAYS",
     "HIGHWAY_DEFAULTS",
+    "PARKING_LANE_WIDTHS",
     "HighwayDefaults",
     "parse_lanes",
+    "parse_margins",
     "parse_oneway",
     "parse_width",
 ]
@@ -137,3 +141,58 @@ def parse_oneway(tags: Mapping[str, str]) -> tuple[bool, bool]:
 def _defaults(highway: str) -> HighwayDefaults:
     base = highway[: -len("_link")] if highway.endswith("_link") else highway
     return HIGHWAY_DEFAULTS.get(base, HIGHWAY_DEFAULTS["residential"])
+
+
+#: Width of a painted cycle lane (m): the common design value (1.5 m in the German ERA and
+#: the US NACTO guide; OSM has no width tag for it on most ways).
+CYCLE_LANE_WIDTH = 1.5
+#: Width of an on-street parking lane by orientation (m; typical design values).
+PARKING_LANE_WIDTHS: Mapping[str, float] = MappingProxyType(
+    {"parallel": 2.0, "diagonal": 4.5, "perpendicular": 5.0}
+)
+_SIDES = ("right", "left")
+
+
+def _side_value(tags: Mapping[str, str], key: str, side: str) -> str:
+    """``key:side``, else ``key:both``, else "" (normalised)."""
+    for name in (f"{key}:{side}", f"{key}:both"):
+        if name in tags:
+            return tags[name].strip().lower()
+    return ""
+
+
+def _cycle_lane(tags: Mapping[str, str], side: str, oneway: bool) -> float:
+    value = _side_value(tags, "cycleway", side)
+    if not value:
+        # Plain ``cycleway=lane``: both sides of a two-way road, the right of a one-way one.
+        value = tags.get("cycleway", "").strip().lower()
+        if oneway and side == "left":
+            value = ""
+    return CYCLE_LANE_WIDTH if value in ("lane", "opposite_lane") else 0.0
+
+
+def _parking_lane(tags: Mapping[str, str], side: str) -> float:
+    # Older scheme: parking:lane:<side>=parallel|diagonal|perpendicular.
+    if width := PARKING_LANE_WIDTHS.get(_side_value(tags, "parking:lane", side)):
+        return width
+    # Newer scheme: parking:<side>=lane with parking:<side>:orientation (default parallel);
+    # street_side / on_kerb parking is off the carriageway.
+    if _side_value(tags, "parking", side) != "lane":
+        return 0.0
+    orientation = tags.get(f"parking:{side}:orientation") or tags.get("parking:both:orientation")
+    return PARKING_LANE_WIDTHS.get((orientation or "parallel").strip().lower(), 0.0)
+
+
+def parse_margins(
+    tags: Mapping[str, str], *, oneway: bool = False, reverse: bool = False
+) -> tuple[float, float]:
+    """Widths (m) of the non-traffic strips on the carriageway, ``(right, left)``.
+
+    Counted: painted cycle lanes (``cycleway[:side]=lane``, :data:`CYCLE_LANE_WIDTH`) and
+    parking lanes on the carriageway (``parking:lane:<side>=parallel|diagonal|perpendicular``
+    or ``parking:<side>=lane`` with its orientation, :data:`PARKING_LANE_WIDTHS`). Tracks,
+    shared lanes and kerbside parking are not on the carriageway and count 0. Sides are
+    those of the way's node order; ``reverse`` (``oneway=-1``, driven against it) swaps them.
+    """
+    right, left = (_cycle_lane(tags, side, oneway) + _parking_lane(tags, side) for side in _SIDES)
+    return (left, right) if reverse else (right, left)
