@@ -59,10 +59,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_ARTIFACT_LIST] = []
     config.stash[_REPLAYS] = _load_replays(config.stash[OPTIONS].replay)
     config.pluginmanager.register(_SessionReporter(config), "pytest-metamorphic-reporter")
-
-
-def pytest_sessionstart(session: pytest.Session) -> None:
-    start_cluster_early(session.config)
+    start_cluster_early(config)
 
 
 def _load_replays(folders: tuple[Path, ...]) -> list[Any]:

@@ -4,6 +4,7 @@ their logs, the merged result across shards and workers, and the reports."""
 from __future__ import annotations
 
 import contextlib
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ __all__ = [
 CAMPAIGN_RESULT = pytest.StashKey[Any]()
 CAMPAIGNS = pytest.StashKey[dict]()
 DASK_CLIENT = pytest.StashKey[Any]()
+STARTING_CLUSTER = pytest.StashKey[Any]()
 CAMPAIGN_PROPERTY = "metamorphic_campaign"
 
 
@@ -118,32 +120,91 @@ def _progress_bar(item: pytest.Item, name: str, *, where: str) -> Any:
 
 
 def start_cluster_early(config: pytest.Config) -> None:
-    """Connect (start a local cluster) at session start and let the workers import the
-    package while pytest collects: in the campaign test they are ready. Only in the
-    process that runs the tests (not an xdist controller)."""
+    """Connect at configure time, so that the cluster is ready when the campaign test runs.
+
+    A local cluster starts in a background thread while pytest collects (its worker
+    processes start on the other cores), and its workers then import the package; a
+    remote scheduler is reached at once, so an unreachable address is a usage error before
+    anything is collected. Only in the process that runs the tests (not an xdist
+    controller).
+    """
     options = config.stash[OPTIONS]
     if not (options.campaign and options.dask) or config.getoption("numprocesses", None):
         return
-    client = _dask_client(config)
+    from pytest_metamorphic.core.campaign.cluster import LOCAL_PREFIX
+
+    if options.dask.startswith(LOCAL_PREFIX):
+        starting = _StartingCluster(options.dask)
+        config.stash[STARTING_CLUSTER] = starting
+        config.add_cleanup(starting.close)
+        return
+    _warm_up(_dask_client(config))
+
+
+def _warm_up(client: Any) -> None:
     from pytest_metamorphic.core.campaign import _worker
 
     client.run(_worker.warm_up, wait=False)
 
 
+class _StartingCluster:
+    """A local cluster started in a thread of its own, which also closes it (the client's
+    context belongs to that thread); :meth:`wait` returns the client."""
+
+    def __init__(self, address: str) -> None:
+        self.client: Any = None
+        self.error: BaseException | None = None
+        self.ready = threading.Event()
+        self.closing = threading.Event()
+        self.thread = threading.Thread(
+            target=self._run, args=(address,), name="pytest-metamorphic dask", daemon=True
+        )
+        self.thread.start()
+
+    def _run(self, address: str) -> None:
+        from pytest_metamorphic.core.campaign.cluster import connect
+
+        try:
+            with connect(address) as client:
+                self.client = client
+                _warm_up(client)
+                self.ready.set()
+                self.closing.wait()
+        except BaseException as error:  # re-raised in the thread that asks for the client
+            self.error = error
+        finally:
+            self.ready.set()
+
+    def wait(self) -> Any:
+        self.ready.wait()
+        if self.client is None:
+            assert self.error is not None
+            raise self.error
+        return self.client
+
+    def close(self) -> None:
+        self.closing.set()
+        self.thread.join()
+
+
 def _dask_client(config: pytest.Config) -> Any:
     """One connection (and for local:N one local cluster) for the whole session."""
     client = config.stash.get(DASK_CLIENT, None)
-    if client is None:
-        from pytest_metamorphic.core.campaign.cluster import ClusterError, connect
+    if client is not None:
+        return client
+    from pytest_metamorphic.core.campaign.cluster import ClusterError, connect
 
-        stack = contextlib.ExitStack()
-        try:
+    starting = config.stash.get(STARTING_CLUSTER, None)
+    try:
+        if starting is not None:
+            client = starting.wait()
+        else:
+            stack = contextlib.ExitStack()
+            config.add_cleanup(stack.close)
             client = stack.enter_context(connect(config.stash[OPTIONS].dask))
-        except ClusterError as error:
-            stack.close()
-            raise pytest.UsageError(f"--mt-dask: {error}") from None
-        config.stash[DASK_CLIENT] = client
-        config.add_cleanup(stack.close)
+    except ClusterError as error:
+        raise pytest.UsageError(f"--mt-dask: {error}") from None
+    config.stash[DASK_CLIENT] = client
     return client
 
 
