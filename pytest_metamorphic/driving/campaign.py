@@ -8,14 +8,14 @@ collision is a *violation* when the source avoided the collision; each is then j
 physically avoidable or not (:func:`~pytest_metamorphic.driving.kinematics.physically_avoidable`).
 
 :func:`iqbal_campaign` returns one :class:`CampaignRow` per (source, controller), and
-:func:`format_campaign` prints them like the paper's Table II. Run the whole study with::
+:func:`format_campaign` prints them like the paper's Table II. Run the whole study, with an
+artifact (record, picture, OpenSCENARIO files) per violation, with::
 
-    python -m pytest_metamorphic.driving.campaign --data ../shared/data
+    python -m pytest_metamorphic.reports.aeb_campaign --data ../shared/data
 """
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -30,18 +30,17 @@ from pytest_metamorphic.driving.kinematics import (
     BrakeCommand,
     Observation,
     physically_avoidable,
-    simulate,
 )
 from pytest_metamorphic.driving.osm import DRIVABLE_HIGHWAYS, load_roads
 from pytest_metamorphic.driving.roads import RoadGeometry
 from pytest_metamorphic.driving.scenario import (
-    KEEP_MODES,
     PROTOCOLS,
     Keep,
     Scenario,
     euro_ncap,
     euro_ncap_road,
 )
+from pytest_metamorphic.driving.simulators import Simulator, check_simulator, run_simulator
 
 __all__ = [
     "OSM_STREETS",
@@ -52,7 +51,6 @@ __all__ = [
     "default_sources",
     "format_campaign",
     "iqbal_campaign",
-    "main",
 ]
 
 ControllerFactory = Callable[[], Callable[[Observation], "float | BrakeCommand"]]
@@ -218,6 +216,8 @@ def iqbal_campaign(
     slack: float = 0.1,
     relevance: Literal["lane", "road"] = "road",
     progress: Callable[[str], None] | None = None,
+    simulator: Simulator | None = None,
+    on_violation: Callable[[str, str, CampaignCollision], None] | None = None,
 ) -> list[CampaignRow]:
     """Run every source at every speed with every controller.
 
@@ -239,6 +239,13 @@ def iqbal_campaign(
         Passed to :func:`physically_avoidable`.
     progress : callable(str), optional
         Called once per finished row.
+    simulator : callable(scenario, controller) -> SimulationResult, optional
+        Where the controllers drive (:mod:`pytest_metamorphic.driving.simulators`):
+        default the built-in simulator; e.g. ``HighwayEnvSimulator()``. Physical
+        avoidability is always judged in the built-in one.
+    on_violation : callable(source name, controller name, CampaignCollision), optional
+        Called as soon as each violation is found (e.g. to save it:
+        ``python -m pytest_metamorphic.reports.aeb_campaign`` writes artifacts this way).
 
     Returns
     -------
@@ -255,6 +262,7 @@ def iqbal_campaign(
         }
     if not controllers or not all(callable(f) for f in controllers.values()):
         raise InvalidArgument("controllers must map names to zero-argument controller factories")
+    simulator = check_simulator(simulator)
     speeds = sorted({float(v) for v in speeds_kmh})
     if not speeds or min(speeds) <= 0:
         raise InvalidArgument("speeds_kmh must hold positive speeds")
@@ -263,7 +271,7 @@ def iqbal_campaign(
     for source, (name, factory) in itertools.product(sources, controllers.items()):
         controller = factory()
         base = source.scenario
-        source_result = simulate(base, controller)
+        source_result = run_simulator(simulator, base, controller)
         collisions = []
         followups = 0
         for speed in speeds:
@@ -271,7 +279,7 @@ def iqbal_campaign(
                 continue
             followups += 1
             scenario = base.with_ego_speed(speed, keep=keep)
-            result = simulate(scenario, controller)
+            result = run_simulator(simulator, scenario, controller)
             if result.collision is None:
                 continue
             key = (source.name, speed)
@@ -279,16 +287,17 @@ def iqbal_campaign(
                 avoidability_cache[key] = physically_avoidable(
                     scenario, slack=slack, relevance=relevance
                 )
-            collisions.append(
-                CampaignCollision(
-                    speed_kmh=speed,
-                    location=result.collision.location,
-                    side=result.collision.side,
-                    impact_speed_kmh=result.collision.impact_speed_kmh,
-                    violation=source_result.avoided,
-                    avoidability=avoidability_cache[key],
-                )
+            collision = CampaignCollision(
+                speed_kmh=speed,
+                location=result.collision.location,
+                side=result.collision.side,
+                impact_speed_kmh=result.collision.impact_speed_kmh,
+                violation=source_result.avoided,
+                avoidability=avoidability_cache[key],
             )
+            collisions.append(collision)
+            if collision.violation and on_violation is not None:
+                on_violation(source.name, name, collision)
         row = CampaignRow(
             source=source.name,
             controller=name,
@@ -391,49 +400,8 @@ def format_campaign(rows: Sequence[CampaignRow], *, title: str | None = None) ->
     return "\n".join(lines)
 
 
-_KEEP_TITLES = {
-    "pedestrian": "car start and pedestrian timing kept",
-    "ego_start": "car start kept, pedestrian re-timed",
-    "time": "time to collision kept",
-}
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: run Iqbal's campaign and print the tables."""
-    parser = argparse.ArgumentParser(
-        prog="python -m pytest_metamorphic.driving.campaign", description=__doc__.split("\n")[0]
-    )
-    parser.add_argument("--data", default="../shared/data", help="shared data folder")
-    parser.add_argument(
-        "--kind", action="append", choices=sorted(PROTOCOLS), help="Euro NCAP test(s)"
-    )
-    parser.add_argument(
-        "--keep",
-        action="append",
-        choices=KEEP_MODES,
-        help="what a follow-up keeps (default pedestrian: Iqbal's; see Scenario.with_ego_speed)",
-    )
-    parser.add_argument("--source-speed", type=float, default=20.0)
-    parser.add_argument("--min-speed", type=int, default=15, help="lowest follow-up km/h")
-    parser.add_argument("--max-speed", type=int, default=100, help="highest follow-up km/h")
-    parser.add_argument(
-        "--relevance",
-        choices=("lane", "road"),
-        default="road",
-        help="the pedestrian counts from stepping onto the road (default) or into the lane",
-    )
-    args = parser.parse_args(argv)
-    speeds = range(args.min_speed, args.max_speed + 1)
-    kinds = args.kind or ["CPNCO-50"]
-    keeps = args.keep or ["pedestrian"]
-    for kind, keep in itertools.product(kinds, keeps):
-        sources = default_sources(args.data, kind=kind, speed_kmh=args.source_speed)
-        rows = iqbal_campaign(sources, speeds_kmh=speeds, keep=keep, relevance=args.relevance)
-        follow = _KEEP_TITLES[keep]
-        print(format_campaign(rows, title=f"{kind}, source {args.source_speed:g} km/h, {follow}"))
-        print()
-    return 0
-
-
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(
+        "the campaign's command line (with artifacts per violation) is now\n"
+        "    python -m pytest_metamorphic.reports.aeb_campaign --data ../shared/data"
+    )

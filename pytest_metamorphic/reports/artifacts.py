@@ -29,7 +29,7 @@ import re
 import shutil
 import uuid
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,6 +54,7 @@ __all__ = [
     "load_case",
     "to_jsonable",
     "write_artifact",
+    "write_folder_atomically",
 ]
 
 FORMAT = "pytest-metamorphic violation artifact"
@@ -221,11 +222,23 @@ def write_artifact(
         ``folder``.
     """
     target = Path(folder)
+    return write_folder_atomically(
+        target,
+        lambda staging: _fill(
+            record, staging, status=status, sut_calls=sut_calls, final_path=target
+        ),
+    )
+
+
+def write_folder_atomically(folder: str | os.PathLike[str], fill: Callable[[Path], Any]) -> Path:
+    """Create or replace ``folder`` with what ``fill(staging)`` writes into a hidden
+    sibling, renamed into place: the folder is either complete or absent."""
+    target = Path(folder)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = target.parent / f".{target.name}.{uuid.uuid4().hex[:8]}.tmp"
     staging.mkdir()
     try:
-        _fill(record, staging, status=status, sut_calls=sut_calls, final_path=target)
+        fill(staging)
         _swap_in(staging, target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)

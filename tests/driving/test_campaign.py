@@ -14,7 +14,6 @@ from pytest_metamorphic.driving.campaign import (
     default_sources,
     format_campaign,
     iqbal_campaign,
-    main,
 )
 from pytest_metamorphic.driving.scenario import euro_ncap
 
@@ -122,14 +121,6 @@ def test_campaign_arguments_are_checked(shared_data: Path) -> None:
         iqbal_campaign(default_sources(shared_data)[:1], {"x": 3})  # type: ignore[dict-item]
     with pytest.raises(InvalidArgument, match="kind"):
         default_sources(shared_data, kind="CPXX")
-
-
-def test_command_line(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["--data", str(shared_data), "--kind", "CPNA-25", "--min-speed", "85",
-                 "--max-speed", "88"]) == 0  # fmt: skip
-    out = capsys.readouterr().out
-    assert "CPNA-25, source 20 km/h, car start and pedestrian timing kept" in out
-    assert "24 follow-ups" in out
 
 
 @pytest.mark.slow

@@ -104,3 +104,19 @@ def test_speed_relation_bundles_follow_up_and_checks() -> None:
     assert slower.params["delta_kmh"] == -1 and slower.input.ego_speed_kmh == 19
     fastest = find(relation.followup(source), lambda f: f.input.ego_speed_kmh >= 80)
     assert fastest.params["ego_speed_kmh"] == 80
+
+
+def test_iqbals_follow_up_lets_the_pedestrian_walk_into_the_mutants_side() -> None:
+    """keep="pedestrian": the car 1 s early, the child walks into its right side."""
+    source, followup, context = pair(mutant_fixed_lane, "CPNCO-50", 20, 25, keep="pedestrian")
+    verdict = avoided_stays_avoided().check(source, followup, context)
+    assert not verdict
+    assert verdict.details["location"] == "side" and verdict.details["physically_avoidable"]
+    assert "right side collision" in verdict.explanation
+    source, followup, context = pair(reference_controller, "CPNCO-50", 20, 25, keep="pedestrian")
+    assert avoided_stays_avoided().check(source, followup, context)
+    # The impact-speed relation presumes car and pedestrian still meet: not bundled here.
+    relation = speed_relation(keep="pedestrian")
+    assert "no faster impact" not in relation.relation.name
+    early = find(relation.followup(euro_ncap("CPNCO-50")), lambda f: f.params["delta_kmh"] > 0)
+    assert early.input.dummy_arrival == pytest.approx(6.0)

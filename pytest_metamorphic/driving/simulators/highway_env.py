@@ -1,0 +1,313 @@
+"""Run AEB scenarios in highway-env (Farama Foundation), an open-source simulator on PyPI.
+
+highway-env (``pip install 'pytest-metamorphic[highway-env]'``) supplies the physics the
+car is tested in: its ``ControlledVehicle`` (kinematic bicycle model, Euler-integrated)
+keeps the car in its lane with highway-env's own steering controller, the AEB under test
+sets the acceleration, and highway-env's ``Road.step`` moves everything and finds
+contacts with its polygon intersection test. What highway-env has no model for is
+scripted as in any OpenSCENARIO player: the Euro NCAP dummy walks the protocol's path
+(uniform acceleration, then constant speed) and the parked cars are ``Obstacle`` objects.
+The AEB sees ground-truth tracks of the actors (highway-env's positions), limited by the
+same :class:`~pytest_metamorphic.driving.kinematics.Sensor` as in the built-in simulator.
+
+Differences from the built-in simulator, all highway-env's: Euler steps (the built-in
+one integrates exactly and finds the contact time by bisection), a car body turned by a
+bicycle model on curved streets, and contacts found at step ends (a contact is reported
+up to one step late, with the speed then).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.driving.kinematics import (
+    BrakeCommand,
+    Collision,
+    Observation,
+    Sensor,
+    SimulationResult,
+    Track,
+)
+from pytest_metamorphic.driving.kinematics.simulator import _as_command, _classify
+from pytest_metamorphic.driving.scenario import PedestrianMotion, Scenario
+
+__all__ = ["HighwayEnvSimulator"]
+
+_INSTALL = "pip install 'pytest-metamorphic[highway-env]'"
+_EXTRA_TIME = 5.0
+_STANDSTILL = 1e-6
+_PATH_STEP = 2.0  # metres between the vertices of the lane the car follows
+_LANE_BEYOND = 60.0  # metres of lane beyond the collision point
+
+
+def _highway_env() -> Any:
+    # pygame (a highway-env dependency) greets on import unless told not to.
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+    try:
+        from highway_env.road import lane, road
+        from highway_env.vehicle import controller, kinematics, objects
+    except ImportError:
+        raise InvalidArgument(f"HighwayEnvSimulator needs highway-env: {_INSTALL}") from None
+    return lane, road, controller, kinematics, objects
+
+
+class HighwayEnvSimulator:
+    """A :data:`~pytest_metamorphic.driving.simulators.Simulator` backed by highway-env.
+
+    Parameters
+    ----------
+    dt : float
+        Step in seconds (the AEB's rate and highway-env's integration step), at most 0.1.
+    sensor : Sensor, optional
+        Default ``Sensor()``: 100 m, 180 degrees, with occlusion.
+
+    Examples
+    --------
+    >>> simulator = HighwayEnvSimulator()                          # doctest: +SKIP
+    >>> result = simulator(euro_ncap("CPNA-25"), reference_controller())  # doctest: +SKIP
+    """
+
+    def __init__(self, *, dt: float = 0.01, sensor: Sensor | None = None) -> None:
+        if isinstance(dt, bool) or not (
+            isinstance(dt, (int, float)) and math.isfinite(dt) and 0 < dt <= 0.1
+        ):
+            raise InvalidArgument(f"dt={dt!r} must be in (0, 0.1] seconds")
+        sensor = Sensor() if sensor is None else sensor
+        if not isinstance(sensor, Sensor):
+            raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
+        self.dt = float(dt)
+        self.sensor = sensor
+        self.modules = _highway_env()
+
+    def __repr__(self) -> str:
+        return f"HighwayEnvSimulator(dt={self.dt:g})"
+
+    def __call__(
+        self,
+        scenario: Scenario,
+        controller: Callable[[Observation], float | BrakeCommand] | None,
+    ) -> SimulationResult:
+        if not isinstance(scenario, Scenario):
+            raise InvalidArgument(f"scenario={scenario!r} must be a Scenario")
+        reset = getattr(controller, "reset", None)
+        if callable(reset):
+            reset()
+        return _Run(self, scenario, controller).run()
+
+
+class _Run:
+    def __init__(
+        self,
+        simulator: HighwayEnvSimulator,
+        scenario: Scenario,
+        controller: Callable[[Observation], float | BrakeCommand] | None,
+    ) -> None:
+        lane_module, road_module, controller_module, kinematics, objects = simulator.modules
+        # The AEB sets the acceleration itself: the plain vehicle's act(), not the
+        # controlled vehicle's cruise control.
+        self.act = kinematics.Vehicle.act
+        self.scenario, self.controller = scenario, controller
+        self.dt, self.sensor = simulator.dt, simulator.sensor
+        road, vehicle = scenario.road, scenario.vehicle
+        self.network = road_module.RoadNetwork()
+        self.network.add_lane("start", "end", self._ego_lane(lane_module))
+        self.road = road_module.Road(network=self.network)
+        centre_s = scenario.ego_start_s - vehicle.length / 2
+        x, y, heading = road.point(centre_s, scenario.ego_offset)
+        self.car = controller_module.ControlledVehicle(
+            self.road, [x, y], heading=heading, speed=scenario.ego_speed
+        )
+        _resize(self.car, vehicle.length, vehicle.width)
+        self.motion = scenario.pedestrian()
+        self.dummy = _Dummy(kinematics.Vehicle, self.road, scenario, self.motion)
+        self.road.vehicles = [self.car, self.dummy.vehicle]
+        self.parked = []
+        for parked in scenario.obstructions():
+            px, py, ph = road.point(parked.s, parked.d)
+            obstacle = objects.Obstacle(self.road, [px, py], heading=ph)
+            _resize(obstacle, parked.footprint.length, parked.footprint.width)
+            self.parked.append((obstacle, parked))
+        self.road.objects = [obstacle for obstacle, _ in self.parked]
+        lane_right, lane_left = road.lane_bounds(scenario.ego_lane)
+        offset = scenario.ego_offset
+        self.lane = (lane_right - offset, lane_left - offset)
+        self.edges = (-road.width / 2 - offset, road.width / 2 - offset)
+        self.t_end = max(scenario.time_to_collision_point, scenario.dummy_arrival) + _EXTRA_TIME
+
+    def _ego_lane(self, lane_module: Any) -> Any:
+        """highway-env's lane along the car's path (its steering controller follows it)."""
+        scenario = self.scenario
+        road = scenario.road
+        width = road.lane_width
+        first = min(scenario.ego_start_s - scenario.vehicle.length - 5.0, 0.0)
+        if len(road.centerline) == 2:
+            start = road.to_world(first, scenario.ego_offset)
+            end = road.to_world(road.length + 50.0, scenario.ego_offset)
+            return lane_module.StraightLane(start, end, width=width)
+        # Only the stretch the car can drive in this run: highway-env's polyline lanes
+        # project a point by scanning every vertex.
+        last = scenario.conflict_s + _LANE_BEYOND
+        s = np.arange(first, last + _PATH_STEP, _PATH_STEP)
+        points = road.to_world(s, np.full_like(s, scenario.ego_offset))
+        return lane_module.PolyLaneFixedWidth(points.tolist(), width=width)
+
+    # -- per step -------------------------------------------------------------------
+    def _bumper(self) -> tuple[tuple[float, float], float]:
+        half = self.scenario.vehicle.length / 2
+        heading = float(self.car.heading)
+        x, y = self.car.position
+        return (x + half * math.cos(heading), y + half * math.sin(heading)), heading
+
+    def _front_s(self) -> float:
+        bumper, _ = self._bumper()
+        s, _ = self.scenario.road.to_frenet(np.asarray(bumper))
+        return float(s)
+
+    def _observe(self, t: float, front_s: float) -> Observation:
+        road, offset = self.scenario.road, self.scenario.ego_offset
+        bumper, heading = self._bumper()
+        actors = [(self.dummy.vehicle, "pedestrian", self.dummy.along, self.dummy.across)]
+        actors += [(obstacle, "vehicle", p.footprint.length, p.footprint.width)
+                   for obstacle, p in self.parked]  # fmt: skip
+        boxes = [_box(actor) for actor, *_ in actors]
+        vs, vd = self.dummy.road_velocity(t)
+        tracks = []
+        for index, (actor, kind, along, across) in enumerate(actors):
+            box = boxes[index]
+            occluders = [other for j, other in enumerate(boxes) if j != index]
+            if not self.sensor.sees(bumper, heading, box, occluders):
+                continue
+            s, d = road.to_frenet(np.asarray(actor.position))
+            velocity = (vs, vd) if index == 0 else (0.0, 0.0)
+            tracks.append(
+                Track(index, kind, float(s) - front_s, float(d) - offset, *velocity, along, across)
+            )
+        vehicle = self.scenario.vehicle
+        return Observation(
+            t, self.dt, float(self.car.speed), vehicle.length, vehicle.width,
+            *self.lane, *self.edges, tuple(tracks),
+        )  # fmt: skip
+
+    def _collision(self, t: float, front_s: float) -> Collision | None:
+        if not self.car.crashed:
+            return None
+        hit = [(self.dummy.vehicle, "pedestrian")]
+        hit += [(obstacle, f"parked car {i}") for i, (obstacle, _) in enumerate(self.parked, 1)]
+        actor, name = next(((a, n) for a, n in hit if a.crashed), hit[0])
+        location, side = _classify(_box(self.car), float(self.car.heading), _box(actor))
+        return Collision(round(t, 9), name, location, side, float(self.car.speed), front_s)  # type: ignore[arg-type]
+
+    def _passed_everyone(self, front_s: float) -> bool:
+        rear = front_s - self.scenario.vehicle.length
+        s, _ = self.scenario.road.to_frenet(np.asarray(self.dummy.vehicle.position))
+        return rear > float(s) + self.dummy.along / 2 + 0.5
+
+    # -- main loop ------------------------------------------------------------------
+    def run(self) -> SimulationResult:
+        dt, scenario = self.dt, self.scenario
+        max_deceleration = scenario.vehicle.max_deceleration
+        pending = [0.0] * round(scenario.vehicle.brake_delay / dt)
+        times: list[float] = []
+        speeds: list[float] = []
+        positions: list[float] = []
+        decels: list[float] = []
+        stages: list[tuple[float, str]] = []
+        first_brake: float | None = None
+        collision: Collision | None = None
+        braked = False
+        t, front_s = 0.0, self._front_s()
+        for k in range(math.ceil(self.t_end / dt)):
+            t = k * dt
+            command = BrakeCommand(0.0)
+            if self.controller is not None:
+                command = _as_command(self.controller(self._observe(t, front_s)))
+            if command.stage and (not stages or stages[-1][1] != command.stage):
+                stages.append((round(t, 9), command.stage))
+            requested = min(max(command.deceleration, 0.0), max_deceleration)
+            if requested > 0 and first_brake is None:
+                first_brake = t
+            pending.append(requested)
+            applied = pending.pop(0)
+            braked = braked or applied > 0
+            speed = float(self.car.speed)
+            times.append(t)
+            speeds.append(speed)
+            positions.append(front_s)
+            decels.append(applied)
+            # Brakes stop the car; they never drive it backwards.
+            acceleration = -min(applied, speed / dt)
+            limit = self.car.MAX_STEERING_ANGLE
+            steering = self.car.steering_control(self.car.target_lane_index)
+            steering = float(np.clip(steering, -limit, limit))
+            self.act(self.car, {"steering": steering, "acceleration": acceleration})
+            self.road.step(dt)
+            self.dummy.advance(t + dt)
+            t += dt
+            front_s = self._front_s()
+            collision = self._collision(t, front_s)
+            if collision is not None:
+                break
+            if (braked and self.car.speed <= _STANDSTILL) or self._passed_everyone(front_s):
+                break
+        return SimulationResult(
+            scenario=scenario,
+            collision=collision,
+            end_time=round(t, 9),
+            final_speed=max(float(self.car.speed), 0.0),
+            ego_s=front_s,
+            first_brake_time=first_brake,
+            stages=tuple(stages),
+            times=np.asarray(times),
+            speeds=np.asarray(speeds),
+            positions=np.asarray(positions),
+            decelerations=np.asarray(decels),
+        )
+
+
+class _Dummy:
+    """The Euro NCAP dummy as a highway-env vehicle that walks the protocol's path."""
+
+    def __init__(
+        self, vehicle_class: Any, road: Any, scenario: Scenario, motion: PedestrianMotion
+    ) -> None:
+        self.scenario, self.motion = scenario, motion
+        self.along, self.across = motion.extent_along_road, motion.extent_across_road
+        # A crossing dummy faces across the road, a longitudinal one along it.
+        self.turn = math.copysign(math.pi / 2, motion.dd) if abs(motion.dd) > 0.5 else 0.0
+        x, y, heading = self._pose(0.0)
+        self.vehicle = vehicle_class(road, [x, y], heading=heading, speed=0.0)
+        _resize(self.vehicle, motion.footprint.length, motion.footprint.width)
+        # highway-env steps every vehicle; this one is moved by advance() instead.
+        self.vehicle.step = lambda dt: None
+        self.advance(0.0)
+
+    def _pose(self, t: float) -> tuple[float, float, float]:
+        s, d = self.motion.road_position(t)
+        x, y, heading = self.scenario.road.point(float(s), float(d))
+        return x, y, heading + self.turn
+
+    def advance(self, t: float) -> None:
+        x, y, heading = self._pose(t)
+        self.vehicle.position = np.array([x, y], dtype=np.float64)
+        self.vehicle.heading = heading
+        self.vehicle.speed = float(self.motion.velocity(t))
+
+    def road_velocity(self, t: float) -> tuple[float, float]:
+        speed = float(self.motion.velocity(t))
+        return speed * self.motion.ds, speed * self.motion.dd
+
+
+def _resize(actor: Any, length: float, width: float) -> None:
+    """highway-env sizes objects by class attributes; ours differ per actor."""
+    actor.LENGTH, actor.WIDTH = float(length), float(width)
+    actor.diagonal = math.hypot(length, width)
+
+
+def _box(actor: Any) -> tuple[tuple[float, float], ...]:
+    return tuple((float(x), float(y)) for x, y in actor.polygon()[:4])
