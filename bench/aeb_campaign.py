@@ -1,4 +1,4 @@
-"""Iqbal's Table II campaign, as ``python -m pytest_metamorphic.driving.campaign`` runs it.
+"""Iqbal's Table II campaign, as ``python -m pytest_metamorphic.reports.aeb_campaign`` runs it.
 
 The default campaign: three CPNCO-50 sources at 20 km/h (the Euro NCAP 10 m test road,
 8th Street and 7th Street in West Oakland from ``../shared/data/osm_osmnx``), the

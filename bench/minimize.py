@@ -23,8 +23,16 @@ calls to its *proven* set. When Hypothesis never gets down to k, both are compar
 smallest size Hypothesis reached (ddmin's calls until its set was first that small).
 Uses a private Hypothesis function (``choices_to_bytes``) to fill the database.
 
+Then the **count-driven** faults (a point budget, a voxel size or a clustering cell
+that scales with the sweep's point count, a percentile of the whole sweep): which points
+arrive does not matter, only how many, so the minimal set is large and every half of it
+passes. At the engine's default budget (``--engine-budget``, 500 SUT calls) the reduction
+the engine runs (bisection of the ranked prefix, one sweep of single removals, then ddmin)
+is compared with ranked ddmin alone on the same failure: proven-minimal share and calls.
+
     python bench/minimize.py [--mutants a,b] [--sizes 100,1000] [--budget N]
-                             [--hypothesis-cap N] [--seeds N]
+                             [--hypothesis-cap N] [--seeds N] [--engine-budget N]
+                             [--count-mutants a,b]
 """
 
 from __future__ import annotations
@@ -47,7 +55,8 @@ from hypothesis.database import InMemoryExampleDatabase, choices_to_bytes
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pytest_metamorphic.core.reduction import reduce_followup  # noqa: E402
+from pytest_metamorphic.core.minimize import ddmin  # noqa: E402
+from pytest_metamorphic.core.reduction import _orders, reduce_followup  # noqa: E402
 from pytest_metamorphic.core.relations import CheckContext  # noqa: E402
 from pytest_metamorphic.lidar.evaluation import kitti_label_region  # noqa: E402
 from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
@@ -68,6 +77,13 @@ MUTANTS = (
     "global_ground_plane",
     "count_scaled_radius",
     "grid_anchored_at_sweep",
+)
+# Mutants whose MR1 failures depend on how many points arrive (see the docstring).
+COUNT_DRIVEN = (
+    "random_point_budget",
+    "voxel_budget",
+    "count_scaled_radius",
+    "full_cloud_height_cut",
 )
 RELATION = mr1_subset().relation
 KEY = b"bench-minimize"
@@ -221,6 +237,80 @@ def run_hypothesis(case: Case, system: Any, frame: Frame, source_output: Any, ca
     case.hypothesis = trace
 
 
+@dataclass
+class CountCase:
+    mutant: str
+    n: int
+    frame: int
+    engine: tuple[int, bool, int, int | None]  # k, proven, calls, count bound
+    alone: tuple[int, bool, int]  # k, proven, calls
+
+
+def reduce_count_case(name: str, n: int, found: tuple[int, int], budget: int) -> CountCase:
+    """The engine's reduction and ranked ddmin alone, each within ``budget`` SUT calls."""
+    system = mutant(name)
+    frame = kitti_frame(found[0])
+    source_output = system(frame)
+    noise = NoiseOutsideROI.from_seeds(frame, seed_list(n, found[1]))
+    followup_output = system(noise.apply(frame))
+    result = reduce_followup(
+        noise.params(),
+        source=frame,
+        source_output=source_output,
+        followup_output=followup_output,
+        run=system,
+        check=RELATION.check,
+        budget=budget,
+    )
+    order = _orders(noise, frame, source_output, followup_output)[0]
+
+    def fails(chosen: list[int]) -> bool:
+        subset = noise.restrict(sorted(chosen))
+        return violates(source_output, system(subset.apply(frame)))
+
+    alone = ddmin(order, fails, max_calls=budget)
+    return CountCase(
+        name,
+        n,
+        found[0],
+        (result.size, result.proven_minimal, result.calls, result.count_bound),
+        (len(alone), alone.proven_minimal, alone.calls),
+    )
+
+
+def count_driven_section(args: argparse.Namespace, frames: list[int]) -> list[CountCase]:
+    cases = []
+    print(f"\ncount-driven faults, {args.engine_budget} SUT calls each (the engine's default):")
+    header = (
+        f"{'mutant':24} {'n':>5} {'fr':>2} | {'k':>4} {'proof':>6} {'calls':>6} {'bound':>6} | "
+        f"{'ddmin k':>7} {'proof':>6} {'calls':>6}"
+    )
+    print(header)
+    print("-" * len(header))
+    for name in [m for m in args.count_mutants.split(",") if m]:
+        for n in (int(v) for v in args.sizes.split(",")):
+            found = find_failure(mutant(name), n, frames, args.seeds)
+            if found is None:
+                print(f"{name:24} {n:>5}    no failure found")
+                continue
+            case = reduce_count_case(name, n, found, args.engine_budget)
+            cases.append(case)
+            k, proven, calls, bound = case.engine
+            k0, proven0, calls0 = case.alone
+            print(
+                f"{name:24} {n:>5} {case.frame:>2} | {k:>4} {'yes' if proven else 'NO':>6} "
+                f"{calls:>6} {bound if bound is not None else '-':>6} | {k0:>7} "
+                f"{'yes' if proven0 else 'NO':>6} {calls0:>6}",
+                flush=True,
+            )
+    print(
+        "k, proof, calls: the engine's reduction (prefix bisection + one sweep + ddmin); "
+        "bound: the first\nk ranked points fail and the first k - 1 do not. ddmin: ranked "
+        "ddmin alone, same budget."
+    )
+    return cases
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mutants", default=",".join(MUTANTS))
@@ -229,6 +319,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=10, help="numpy seeds tried per frame")
     parser.add_argument("--budget", type=int, default=10000, help="ddmin SUT-call budget")
     parser.add_argument("--hypothesis-cap", type=int, default=2000)
+    parser.add_argument("--engine-budget", type=int, default=500)
+    parser.add_argument("--count-mutants", default=",".join(COUNT_DRIVEN))
     args = parser.parse_args()
     if not KITTI.is_dir():
         sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
@@ -296,11 +388,26 @@ def main() -> None:
         f"{statistics.median(case.k for case in cases):g}, Hypothesis reached k in "
         f"{reached:.0%}, {elapsed:.0f} s"
     )
+    counted = count_driven_section(args, frames)
+    if not counted:
+        sys.exit("no count-driven failures to reduce")
+    count_proven = sum(c.engine[1] for c in counted) / len(counted)
+    alone_proven = sum(c.alone[1] for c in counted) / len(counted)
+    count_calls = statistics.median(c.engine[2] for c in counted)
+    alone_calls = statistics.median(c.alone[2] for c in counted)
+    elapsed = time.perf_counter() - began
+    print(
+        f"\ncount-driven: proven 1-minimal {count_proven:.0%} (ddmin alone {alone_proven:.0%}), "
+        f"median calls {count_calls:g} (ddmin alone {alone_calls:g}); {elapsed:.0f} s in all"
+    )
     print(
         f"RESULT proven_minimal={proven:.3f} call_ratio={statistics.median(ratios):.2f} "
         f"median_k={statistics.median(case.k for case in cases):g} "
         f"call_ratio_min={min(ratios):.2f} hypothesis_reached_k={reached:.3f} "
-        f"cases={len(cases)} seconds={elapsed:.0f}"
+        f"cases={len(cases)} count_proven={count_proven:.3f} "
+        f"count_proven_ddmin_alone={alone_proven:.3f} count_calls={count_calls:g} "
+        f"count_calls_ddmin_alone={alone_calls:g} count_cases={len(counted)} "
+        f"seconds={elapsed:.0f}"
     )
 
 

@@ -16,7 +16,7 @@ from typing import Generic, TypeVar
 
 from pytest_metamorphic.core.errors import InvalidArgument
 
-__all__ = ["MinimizationResult", "ddmin"]
+__all__ = ["MinimizationResult", "ddmin", "one_minimal_sweep", "shortest_failing_prefix"]
 
 T = TypeVar("T")
 
@@ -133,6 +133,61 @@ def ddmin(
         return result(not test([]))
     except _Budget:
         return result(False)
+
+
+def shortest_failing_prefix(
+    order: Sequence[T], fails: Callable[[Sequence[T]], bool], *, max_calls: int
+) -> tuple[int, bool]:
+    """Bisect the length ``k`` of the shortest prefix ``order[:k]`` that fails.
+
+    ``order`` must fail as a whole (not re-checked). For failures that depend on *how many*
+    elements arrive (a point budget, a density, a percentile) ddmin's halves and
+    complements all pass until its granularity reaches the count; bisection over a
+    ranked prefix finds it in ``log2(len(order))`` calls. With a non-monotonic failure it
+    still ends on a failing prefix.
+
+    Returns
+    -------
+    (k, bounded)
+        ``order[:k]`` fails; ``bounded`` is True when ``order[:k - 1]`` was seen to pass
+        (or ``k == 1``), i.e. no shorter prefix fails at the boundary.
+    """
+    lo, hi, calls = 0, len(order), 0  # order[:hi] fails; order[:lo] passes (lo = 0 assumed)
+    while hi - lo > 1 and calls < max_calls:
+        mid = (lo + hi) // 2
+        calls += 1
+        if fails(order[:mid]):
+            hi = mid
+        else:
+            lo = mid
+    return hi, hi - lo == 1
+
+
+def one_minimal_sweep(
+    elements: Sequence[T], fails: Callable[[Sequence[T]], bool], *, max_calls: int
+) -> tuple[list[int], bool, int]:
+    """Try removing each element once, last first, keeping every removal that still fails.
+
+    ``elements`` must fail as a whole. When no removal fails in a full sweep the set is
+    proven 1-minimal in ``len(elements)`` calls (ddmin would spend about twice that on
+    a set whose every half passes, as count-driven failures have).
+
+    Returns
+    -------
+    (kept, proven, calls)
+        Positions of the kept elements in ``elements``, whether the sweep proved them
+        1-minimal (no removal succeeded and the sweep completed), and calls spent.
+    """
+    kept = list(range(len(elements)))
+    calls, removed = 0, False
+    for position in reversed(range(len(elements))):
+        if calls >= max_calls:
+            return kept, False, calls
+        trial = [i for i in kept if i != position]
+        calls += 1
+        if fails([elements[i] for i in trial]):
+            kept, removed = trial, True
+    return kept, not removed, calls
 
 
 def _split(items: list[int], parts: int) -> list[list[int]]:

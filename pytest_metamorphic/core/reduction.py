@@ -19,7 +19,7 @@ from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.core.minimize import ddmin
+from pytest_metamorphic.core.minimize import ddmin, one_minimal_sweep, shortest_failing_prefix
 from pytest_metamorphic.core.perturbation import Reducible, find_reducible
 from pytest_metamorphic.core.relations import CheckContext, Verdict
 
@@ -29,6 +29,11 @@ DEFAULT_BUDGET = 500
 """SUT calls one reduction may spend (``--mt-minimize-budget``)."""
 
 _SHOWN_ELEMENTS = 10
+# Below this many elements ddmin alone is cheap; above it a ranked prefix is bisected first.
+_PREFIX_MIN = 16
+# A shortest failing prefix longer than this is swept one element at a time (a count-driven
+# failure: every half passes, so ddmin would spend about twice the prefix's length).
+_SWEEP_MIN = 32
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,10 @@ class Reduction:
     fails_without_elements : bool
         The transform with *no* elements violates the relation too (the relation fails
         on the untouched source: a nondeterministic system or an unsound relation).
+    count_bound : int or None
+        k when the first k ranked elements fail and the first k - 1 pass: a failure that
+        needs about k elements to arrive (a point budget, a density), stated even when
+        the set is too large to prove 1-minimal within the budget.
     """
 
     key: str
@@ -77,6 +86,7 @@ class Reduction:
     crashes: int = 0
     fails_without_elements: bool = False
     sizes: tuple[int, ...] = field(default=(), repr=False)  # subset size after each reduction
+    count_bound: int | None = None
 
     @property
     def size(self) -> int:
@@ -97,6 +107,11 @@ class Reduction:
                 f"NOT proven minimal: the budget of {self.budget} SUT calls ran out "
                 "(raise it with --mt-minimize-budget)"
             )
+            if self.count_bound is not None:
+                status += (
+                    f"; the first {self.count_bound} ranked element(s) fail and the first "
+                    f"{self.count_bound - 1} do not: the failure depends on how many arrive"
+                )
         crashed = f"; the system crashed on {self.crashes} subset(s)" if self.crashes else ""
         return f"{kept}, {status}, {self.calls} SUT calls{crashed}"
 
@@ -219,30 +234,25 @@ def reduce_followup(
         return verdicts[indices]
 
     current = list(range(len(reducible)))
-    proven = False
+    if not fails(current):
+        raise InvalidArgument(
+            f"rebuilding the follow-up from all {len(reducible)} elements of {key!r} "
+            f"({type(reducible).__name__}.restrict + apply) does not violate the "
+            "relation, so it cannot be reduced"
+        )
     sizes: list[int] = []
+    count_bound, current, proven = _count_pass(orders[0], fails, lambda: budget - calls, sizes)
     for number, order in enumerate(orders):
         remaining = budget - calls
-        if remaining <= 0:
+        if proven or remaining <= 0:
             break
         # Later orders are fallbacks: each pass but the last gets 4/5 of what is left.
         share = remaining if number == len(orders) - 1 else max(remaining * 4 // 5, 1)
         kept = set(current)
-        try:
-            result = ddmin(
-                [i for i in order if i in kept], fails, max_calls=share, check_input=number == 0
-            )
-        except InvalidArgument:
-            raise InvalidArgument(
-                f"rebuilding the follow-up from all {len(reducible)} elements of {key!r} "
-                f"({type(reducible).__name__}.restrict + apply) does not violate the "
-                "relation, so it cannot be reduced"
-            ) from None
+        result = ddmin([i for i in order if i in kept], fails, max_calls=share, check_input=False)
         current = sorted(result.elements)
         sizes.extend(result.history)
-        if result.proven_minimal:
-            proven = True
-            break
+        proven = result.proven_minimal
     indices = tuple(current)
     reduced, value, _ = build(indices)
     subset_params, output, verdict = failing[indices]
@@ -261,4 +271,64 @@ def reduce_followup(
         crashes=crashes,
         fails_without_elements=() in failing,
         sizes=tuple(sizes),
+        count_bound=count_bound,
     )
+
+
+def _count_pass(
+    order: list[int],
+    fails: Callable[[Sequence[int]], bool],
+    remaining: Callable[[], int],
+    sizes: list[int],
+) -> tuple[int | None, list[int], bool]:
+    """The cheap first pass before ddmin.
+
+    1. Bisect the shortest failing prefix ``order[:k]`` of the ranked elements.
+    2. Its last element is needed by that prefix: keep it and bisect the shortest prefix of
+       the others that still fails with it. A few culprits among many leave a short
+       candidate (ddmin finishes it); a failure that needs almost all of them (it depends
+       on how many arrive) leaves a long one.
+    3. A long candidate is swept once, one removal at a time: for a count-driven failure
+       every removal passes, which proves it 1-minimal in about k calls (ddmin would
+       spend about twice that, since every half passes too).
+
+    Returns ``(count_bound, kept indices, proven)``; ``count_bound`` is k when the first
+    k - 1 ranked elements were seen to pass.
+    """
+    if len(order) <= _PREFIX_MIN:
+        return None, sorted(order), False
+
+    def limited(chosen: Sequence[int]) -> bool:
+        if remaining() <= 0:
+            raise _OutOfBudget
+        return fails(chosen)
+
+    best: list[int] = order
+    count: int | None = None
+    try:
+        k, bounded = shortest_failing_prefix(order, limited, max_calls=max(remaining() // 8, 1))
+        count = k if bounded else None
+        best = order[:k]
+        sizes.append(k)
+        if k <= _SWEEP_MIN:
+            return count, sorted(best), False
+        last, rest = best[-1], best[:-1]
+        if limited([last]):
+            best = [last]
+        else:
+            j, _ = shortest_failing_prefix(
+                rest, lambda chosen: limited([*chosen, last]), max_calls=max(remaining() // 8, 1)
+            )
+            best = [*rest[:j], last]
+        sizes.append(len(best))
+        if len(best) <= _SWEEP_MIN or 2 * len(best) < k:
+            return count, sorted(best), False
+        kept, proven, _ = one_minimal_sweep(best, limited, max_calls=remaining())
+    except _OutOfBudget:
+        return count, sorted(best), False
+    sizes.append(len(kept))
+    return count, sorted(best[i] for i in kept), proven
+
+
+class _OutOfBudget(Exception):
+    pass

@@ -261,17 +261,41 @@ def test_fallback_orders_share_the_budget_and_continue_from_the_first_pass() -> 
         tested.clear()
         result = reduce_followup({"append": TwoOrders(items)}, budget=budget, run=run, **common)
         assert result.calls == len(tested) <= budget
-        assert not result.proven_minimal
-        # The second pass starts from the first pass's set: it only tries its subsets.
-        first, second = tested[: budget * 4 // 5], tested[budget * 4 // 5 :]
-        best = min(size for size, fails in first if fails)
-        assert second and all(size <= best for size, _ in second)
-    # With room enough, the first pass proves the set and the fallback is never used.
+        kept = [items[i] for i in result.indices]
+        assert system([10, *kept]) == -1  # always a failing set
+    assert result.proven_minimal and result.size == 20  # 300 calls are enough
+    # With room enough, the first order proves the set and the fallback is never used.
     single = reduce_followup({"append": Append(items)}, budget=1000, run=system, **common)
     double = reduce_followup({"append": TwoOrders(items)}, budget=1000, run=system, **common)
     assert single.proven_minimal and double.proven_minimal
     assert (double.calls, double.indices) == (single.calls, single.indices)
     assert all(items[i] >= 50 for i in double.indices) and double.size == 20
+
+
+def test_a_fallback_order_only_tries_subsets_of_the_first_passs_set() -> None:
+    # Fails when 7 and 300 are both appended; tiny budgets leave the first pass unproven.
+    def system(values: list[int]) -> int:
+        return -1 if 7 in values and 300 in values else max(values)
+
+    items = [*range(8, 20), 300, *range(20, 40), 7, *range(40, 60)]
+    tested: list[int] = []
+
+    def run(values: list[int]) -> int:
+        tested.append(len(values) - 1)
+        return system(values)
+
+    class TwoOrders(Append):
+        def restrict(self, indices: Sequence[int]) -> TwoOrders:
+            return TwoOrders([self.items[i] for i in indices])
+
+        def rankings(self, source: Any, source_output: Any, followup_output: Any):
+            plain = list(range(len(self.items)))
+            return [plain, plain[::-1]]
+
+    common = {"source": [10], "source_output": 10, "followup_output": -1, "check": MONOTONE.check}
+    result = reduce_followup({"append": TwoOrders(items)}, budget=12, run=run, **common)
+    assert result.calls == len(tested) <= 12
+    assert system([10, *(items[i] for i in result.indices)]) == -1
 
 
 def test_no_reducible_parameter_means_no_reduction() -> None:
@@ -402,3 +426,53 @@ def test_a_failing_reduction_keeps_the_violation(monkeypatch) -> None:
     with pytest.raises(MetamorphicViolation) as caught:
         make_test([])()
     assert "could not reduce the follow-up: RuntimeError: reducer bug" in str(caught.value)
+
+
+def _count_driven(threshold: int):
+    """A system that loses the source's value once ``threshold`` values are appended (a
+    point budget): which values arrive does not matter, only how many."""
+
+    def system(values: list[int]) -> int:
+        return 0 if len(values) - 1 >= threshold else max(values)
+
+    return system
+
+
+@pytest.mark.parametrize(("appended", "threshold"), [(1000, 476), (1000, 289), (300, 40)])
+def test_count_driven_failures_end_proven_within_the_default_budget(
+    appended: int, threshold: int
+) -> None:
+    """ddmin alone ran out at 476 of 1000 such elements after 500 calls; bisecting the
+    prefix, then one sweep of single removals, proves the set in about threshold calls."""
+    system = _count_driven(threshold)
+    source, items = [150], list(range(appended))
+    result = reduce_followup(
+        Append(items).params(),
+        source=source,
+        source_output=system(source),
+        followup_output=system([*source, *items]),
+        run=system,
+        check=MONOTONE.check,
+    )
+    assert result.proven_minimal, result.summary()
+    assert result.size == threshold and result.count_bound == threshold
+    assert result.calls <= threshold + 20
+    kept = [items[i] for i in result.indices]
+    assert system([*source, *kept]) == 0 and system([*source, *kept[1:]]) != 0
+
+
+def test_a_count_too_large_to_prove_is_stated_with_its_bound() -> None:
+    system = _count_driven(37_721)
+    source, items = [150], list(range(81_926))
+    result = reduce_followup(
+        Append(items).params(),
+        source=source,
+        source_output=system(source),
+        followup_output=system([*source, *items]),
+        run=system,
+        check=MONOTONE.check,
+        budget=500,
+    )
+    assert not result.proven_minimal and result.calls <= 500
+    assert result.count_bound == 37_721 and result.size == 37_721
+    assert "the first 37721 ranked element(s) fail and the first 37720 do not" in result.summary()
