@@ -146,8 +146,9 @@ def kitti_frame(index: int) -> Frame:
     return Frame(read_bin(KITTI / f"{index:06d}.bin"), roi=kitti_label_region())
 
 
-def violates(source_output: Any, output: Any) -> bool:
-    return not RELATION.check(source_output, output, CheckContext()).holds
+def violates(source_output: Any, output: Any, frame: Frame, followup: Frame) -> bool:
+    """MR1 as the engine checks it: with both frames, so the ROI scope can judge."""
+    return not RELATION.check(source_output, output, CheckContext(frame, followup)).holds
 
 
 def seed_list(n: int, seed: int) -> list[int]:
@@ -164,7 +165,8 @@ def find_failure(
         source_output = system(frame)
         for seed in range(seeds):
             noise = NoiseOutsideROI.from_seeds(frame, seed_list(n, seed))
-            if violates(source_output, system(noise.apply(frame))):
+            followup = noise.apply(frame)
+            if violates(source_output, system(followup), frame, followup):
                 return index, seed
     return None
 
@@ -176,7 +178,8 @@ def run_ddmin(case: Case, system: Any, frame: Frame, source_output: Any, budget:
 
     def run(value: Frame) -> Any:
         output = system(value)
-        trace.record(len(value.cloud) - len(frame.cloud), violates(source_output, output))
+        failed = violates(source_output, output, frame, value)
+        trace.record(len(value.cloud) - len(frame.cloud), failed)
         return output
 
     started = time.perf_counter()
@@ -222,7 +225,8 @@ def run_hypothesis(case: Case, system: Any, frame: Frame, source_output: Any, ca
         if key not in verdicts:
             if trace.calls >= cap:
                 return  # out of budget: unseen examples pass
-            verdicts[key] = violates(source_output, system(followup.input))
+            output = system(followup.input)
+            verdicts[key] = violates(source_output, output, frame, followup.input)
             trace.record(len(points), verdicts[key])
         assert not verdicts[key]
 
@@ -266,7 +270,8 @@ def reduce_count_case(name: str, n: int, found: tuple[int, int], budget: int) ->
 
     def fails(chosen: list[int]) -> bool:
         subset = noise.restrict(sorted(chosen))
-        return violates(source_output, system(subset.apply(frame)))
+        followup = subset.apply(frame)
+        return violates(source_output, system(followup), frame, followup)
 
     alone = ddmin(order, fails, max_calls=budget)
     return CountCase(

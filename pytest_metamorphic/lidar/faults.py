@@ -1,0 +1,234 @@
+"""Sensor faults of a spinning LiDAR as follow-up transforms: beams missing, a packet lost.
+
+A real sensor loses whole lasers (a dead channel, a dirty window segment) and whole
+packets (an Ethernet drop takes one azimuth block of every laser). Both need to know
+which laser (ring) fired each point: recorded PCD/bag clouds usually carry a ``ring``
+field; KITTI's ``.bin`` sweeps do not, but store points laser by laser in firing order,
+from which :func:`derive_rings` recovers the ring exactly; rendered scenes carry it.
+
+:class:`DropRings` is :class:`~pytest_metamorphic.core.perturbation.Reducible` over the
+missing rings: a violation reduces to the fewest beams whose loss still fails.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.cloud import PointCloud
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
+
+__all__ = ["DropAzimuthBlock", "DropRings", "RingMethod", "derive_rings"]
+
+RingMethod = Literal["auto", "field", "scan_order", "elevation"]
+_METHODS = ("auto", "field", "scan_order", "elevation")
+
+
+def _azimuth(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
+    """Azimuth in [0, 2π), counter-clockwise from +x."""
+    return np.mod(np.arctan2(xyz[:, 1].astype(np.float64), xyz[:, 0]), 2 * math.pi)
+
+
+def _elevation(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
+    planar = np.hypot(xyz[:, 0].astype(np.float64), xyz[:, 1])
+    return np.arctan2(xyz[:, 2].astype(np.float64), planar)
+
+
+def _rings_from_scan_order(xyz: NDArray[np.float32], lasers: int) -> NDArray[np.uint8] | None:
+    """Rings of a sweep stored laser by laser, or None when it is not stored that way.
+
+    Within one laser's revolution the azimuth in [0, 2π) grows; the next laser starts
+    over, so the azimuth drops by more than π. Exactly ``lasers`` runs whose median
+    elevations are ordered mean the layout is recognised; rings are numbered from the
+    lowest beam (0) up, as ROS drivers publish them, whichever end the file starts at.
+    """
+    if len(xyz) < 2 * lasers:
+        return None
+    starts = np.flatnonzero(np.diff(_azimuth(xyz)) < -math.pi) + 1
+    if len(starts) != lasers - 1:
+        return None
+    bounds = np.concatenate([[0], starts, [len(xyz)]])
+    elevation = _elevation(xyz)
+    medians = np.array([np.median(elevation[a:b]) for a, b in itertools.pairwise(bounds)])
+    steps = np.diff(medians)
+    if (steps < 0).all():
+        rank = np.arange(lasers)[::-1]  # stored top beam first (KITTI)
+    elif (steps > 0).all():
+        rank = np.arange(lasers)
+    else:
+        return None
+    return np.repeat(rank, np.diff(bounds)).astype(np.uint8)
+
+
+def _rings_from_elevation(xyz: NDArray[np.float32], layout: BeamLayout) -> NDArray[np.uint8]:
+    """The nearest beam of ``layout`` by elevation (exact for scans rendered with it)."""
+    order = np.argsort(layout.elevations, kind="stable")
+    sorted_elevations = layout.elevations[order]
+    elevation = _elevation(xyz)
+    right = np.clip(np.searchsorted(sorted_elevations, elevation), 1, len(order) - 1)
+    left = right - 1
+    nearer_left = (elevation - sorted_elevations[left]) < (sorted_elevations[right] - elevation)
+    return np.where(nearer_left, left, right).astype(np.uint8)
+
+
+def derive_rings(
+    cloud: PointCloud, *, layout: BeamLayout = HDL64E, method: RingMethod = "auto"
+) -> NDArray[np.uint8]:
+    """The ring (laser, 0 = lowest beam) of every point of ``cloud``.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    layout : BeamLayout
+        The sensor (default the HDL-64E): its number of lasers, and for ``"elevation"``
+        their elevations.
+    method : {"auto", "field", "scan_order", "elevation"}
+        ``"field"``: the cloud's ``ring`` field. ``"scan_order"``: recovered from the
+        storage order of a sweep stored laser by laser (KITTI's ``.bin``; exact when it
+        applies). ``"elevation"``: the nearest beam of ``layout`` by elevation angle
+        (exact for scenes rendered with ``layout``; a real unit's own calibration differs:
+        on a shuffled KITTI sweep it is off by 2 rings at the median, 10 at most).
+        ``"auto"``: the first that applies, in that order.
+
+    Returns
+    -------
+    rings : (n,) uint8
+
+    Raises
+    ------
+    InvalidArgument
+        The method does not apply to this cloud (no ring field; not stored laser by laser).
+    """
+    if not isinstance(cloud, PointCloud):
+        raise InvalidArgument(f"cloud must be a PointCloud, got {type(cloud).__name__}")
+    if method not in _METHODS:
+        raise InvalidArgument(f"method={method!r} must be one of {list(_METHODS)}")
+    if not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
+    if method in ("auto", "field") and "ring" in cloud.fields:
+        return np.asarray(cloud.fields["ring"]).astype(np.uint8)
+    if method == "field":
+        raise InvalidArgument("the cloud has no 'ring' field")
+    if method in ("auto", "scan_order"):
+        rings = _rings_from_scan_order(cloud.xyz, layout.lasers)
+        if rings is not None:
+            return rings
+        if method == "scan_order":
+            raise InvalidArgument(
+                "the cloud is not stored laser by laser in firing order "
+                f"(expected {layout.lasers} revolutions of rising azimuth); use "
+                "method='elevation' or a cloud with a ring field"
+            )
+    return _rings_from_elevation(cloud.xyz, layout)
+
+
+def _ring_list(rings: Any, lasers: int) -> tuple[int, ...]:
+    try:
+        values = [int(r) for r in rings]
+    except (TypeError, ValueError):
+        raise InvalidArgument(f"rings={rings!r} must be a sequence of ring numbers") from None
+    if any(isinstance(r, bool) for r in rings) or not all(0 <= r < lasers for r in values):
+        raise InvalidArgument(f"rings={rings!r} must be ring numbers in [0, {lasers - 1}]")
+    return tuple(sorted(set(values)))
+
+
+@dataclass(frozen=True)
+class DropRings:
+    """Remove every return of the lasers ``rings`` (dead channels).
+
+    Parameters
+    ----------
+    rings : sequence of int
+        Ring numbers (0 = lowest beam), repeats ignored.
+    layout : BeamLayout
+        The sensor, for :func:`derive_rings` when the cloud has no ring field.
+    method : str
+        How rings are found (see :func:`derive_rings`).
+    """
+
+    rings: tuple[int, ...]
+    layout: BeamLayout = HDL64E
+    method: RingMethod = "auto"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.layout, BeamLayout):
+            raise InvalidArgument(f"layout={self.layout!r} must be a BeamLayout")
+        object.__setattr__(self, "rings", _ring_list(self.rings, self.layout.lasers))
+
+    def __len__(self) -> int:
+        return len(self.rings)
+
+    def restrict(self, indices: Sequence[int]) -> DropRings:
+        return DropRings(tuple(self.rings[i] for i in indices), self.layout, self.method)
+
+    def kept(self, frame: Frame) -> NDArray[np.bool_]:
+        """Which points of ``frame`` survive."""
+        rings = derive_rings(frame.cloud, layout=self.layout, method=self.method)
+        return ~np.isin(rings, self.rings)
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        return frame.with_cloud(frame.cloud[self.kept(frame)])
+
+    def params(self) -> dict[str, Any]:
+        return {"missing_rings": list(self.rings), "drop_rings": self}
+
+    def describe_elements(self, limit: int) -> list[str]:
+        return [f"ring {ring}" for ring in self.rings[:limit]]
+
+    def __repr__(self) -> str:
+        return f"DropRings({list(self.rings)})"
+
+
+@dataclass(frozen=True)
+class DropAzimuthBlock:
+    """Remove every return whose azimuth lies in ``[start, start + width)`` (a lost packet:
+    one block of firings of every laser).
+
+    Parameters
+    ----------
+    start : float
+        Radians, counter-clockwise from +x (the car's forward axis).
+    width : float
+        Radians, in (0, 2π). An HDL-64E packet holds 6 firings of all lasers at 10 Hz,
+        about 1.04 degrees.
+    """
+
+    start: float
+    width: float
+
+    def __post_init__(self) -> None:
+        for name in ("start", "width"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+                raise InvalidArgument(f"{name}={value!r} must be a number (radians)")
+            if not math.isfinite(value):
+                raise InvalidArgument(f"{name}={value!r} must be finite")
+        if not 0 < self.width < 2 * math.pi:
+            raise InvalidArgument(f"width={self.width!r} must be in (0, 2π) radians")
+        object.__setattr__(self, "start", float(self.start) % (2 * math.pi))
+        object.__setattr__(self, "width", float(self.width))
+
+    def kept(self, frame: Frame) -> NDArray[np.bool_]:
+        offset = np.mod(_azimuth(frame.cloud.xyz) - self.start, 2 * math.pi)
+        return offset >= self.width
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        return frame.with_cloud(frame.cloud[self.kept(frame)])
+
+    def params(self) -> dict[str, Any]:
+        return {
+            "lost_block_start_deg": round(math.degrees(self.start), 3),
+            "lost_block_width_deg": round(math.degrees(self.width), 3),
+        }

@@ -1,0 +1,103 @@
+"""Sensor faults: rings recovered from real KITTI sweeps and rendered scans, dead beams and
+lost packets as follow-up transforms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pytest_metamorphic import InvalidArgument
+from pytest_metamorphic.core.perturbation import find_reducible
+from pytest_metamorphic.lidar.faults import DropAzimuthBlock, DropRings, derive_rings
+from pytest_metamorphic.lidar.hdl64 import HDL64E
+from tests.core.lidar_cases import kitti, street
+
+
+def _elevation_deg(frame) -> np.ndarray:  # type: ignore[no-untyped-def]
+    xyz = frame.cloud.xyz.astype(np.float64)
+    return np.degrees(np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1])))
+
+
+@pytest.mark.parametrize("index", range(6))
+def test_kitti_sweeps_give_up_their_64_rings_from_storage_order(index: int) -> None:
+    frame = kitti(index)
+    assert "ring" not in frame.cloud.fields  # KITTI's .bin has x, y, z, intensity only
+    rings = derive_rings(frame.cloud, method="scan_order")
+    assert np.array_equal(rings, derive_rings(frame.cloud))  # what "auto" picks here
+    counts = np.bincount(rings, minlength=64)
+    assert len(counts) == 64 and counts.min() > 700  # every laser, a revolution each
+    elevation = _elevation_deg(frame)
+    medians = np.array([np.median(elevation[rings == ring]) for ring in range(64)])
+    assert (np.diff(medians) > 0).all()  # ring 0 is the lowest beam, as ROS numbers them
+    assert medians[0] < -22 and medians[-1] > 1.5  # the HDL-64E's ~26.9 degree span
+
+
+def test_rendered_scans_carry_rings_and_elevation_recovers_them_exactly() -> None:
+    frame = street()
+    truth = frame.cloud.fields["ring"]
+    assert np.array_equal(derive_rings(frame.cloud), truth)
+    assert np.array_equal(derive_rings(frame.cloud, method="elevation"), truth)
+    # Rendered in firing order (azimuth by azimuth), not laser by laser.
+    with pytest.raises(InvalidArgument, match="not stored laser by laser"):
+        derive_rings(frame.cloud, method="scan_order")
+
+
+def test_an_unordered_real_sweep_falls_back_to_the_nominal_elevations() -> None:
+    """KITTI's own unit differs from the nominal calibration: nearest elevation is then off
+    by about two rings, which the docs say (measured: median 2, at most 10)."""
+    frame = kitti(0)
+    truth = derive_rings(frame.cloud)
+    order = np.random.default_rng(0).permutation(len(frame.cloud))
+    guessed = derive_rings(frame.cloud[order])  # auto: no field, no scan order
+    off = np.abs(guessed.astype(int) - truth[order].astype(int))
+    assert np.median(off) <= 2 and off.max() <= 10
+    with pytest.raises(InvalidArgument, match="no 'ring' field"):
+        derive_rings(frame.cloud, method="field")
+
+
+def test_dropping_rings_removes_exactly_those_lasers() -> None:
+    frame = kitti(1)
+    rings = derive_rings(frame.cloud)
+    fault = DropRings([40, 3, 3])
+    assert fault.rings == (3, 40) and len(fault) == 2
+    after = fault.apply(frame)
+    assert len(after.cloud) == len(frame.cloud) - np.isin(rings, (3, 40)).sum()
+    assert after.roi is frame.roi
+    kept = derive_rings(frame.cloud)[fault.kept(frame)]
+    assert not np.isin(kept, (3, 40)).any()
+    assert fault.params()["missing_rings"] == [3, 40]
+    # Reducible over the missing rings: a violation reduces to the fewest dead beams.
+    key, reducible = find_reducible(fault.params())  # type: ignore[misc]
+    assert key == "drop_rings" and reducible.restrict([1]).rings == (40,)
+    assert fault.describe_elements(5) == ["ring 3", "ring 40"]
+
+
+@pytest.mark.parametrize(
+    ("rings", "message"),
+    [([64], r"\[0, 63\]"), ([-1], r"\[0, 63\]"), ([True], "ring numbers"), (5, "sequence")],
+)
+def test_bad_rings_are_named(rings: object, message: str) -> None:
+    with pytest.raises(InvalidArgument, match=message):
+        DropRings(rings)  # type: ignore[arg-type]
+
+
+def test_a_lost_packet_removes_one_azimuth_block_of_every_laser() -> None:
+    frame = kitti(2)
+    packet = math.radians(1.04)
+    fault = DropAzimuthBlock(math.radians(359.5), packet)  # wraps past 0 (straight ahead)
+    after = fault.apply(frame)
+    azimuth = np.degrees(
+        np.mod(np.arctan2(frame.cloud.xyz[:, 1], frame.cloud.xyz[:, 0]), 2 * np.pi)
+    )
+    lost = (azimuth >= 359.5) | (azimuth < 0.54)
+    assert len(after.cloud) == len(frame.cloud) - lost.sum() and lost.sum() > 100
+    rings = derive_rings(frame.cloud)
+    assert len(np.unique(rings[lost])) > 50  # every laser loses its firings there
+    assert fault.params() == {"lost_block_start_deg": 359.5, "lost_block_width_deg": 1.04}
+    with pytest.raises(InvalidArgument, match="width"):
+        DropAzimuthBlock(0.0, 7.0)
+    with pytest.raises(InvalidArgument, match="start"):
+        DropAzimuthBlock(float("nan"), 0.1)
+    assert HDL64E.lasers == 64
