@@ -1,0 +1,93 @@
+"""Ready metamorphic relations for LiDAR obstacle perception (systems ``frame -> list[Box]``).
+
+Each function returns a :class:`~pytest_metamorphic.core.engine.MetamorphicRelation`
+(an input transform of a :class:`~pytest_metamorphic.lidar.frame.Frame` plus an output
+relation) to pass to ``@metamorphic(relations=[...])``; :func:`lidar_relations` returns
+them all. The source input must be a ``Frame`` with an ROI (``frame.roi``).
+
+===============================  ===================================  ======================
+relation                         follow-up                            expected output
+===============================  ===================================  ======================
+:func:`mr1_subset`               noise outside the ROI (paper's MR1)  O ⊆ O' (one-to-one)
+:func:`mr1_cardinality`          the same                             abs O <= abs O'
+:func:`outside_noise_invariance` the same                             O == O'
+:func:`outside_removal`          outside-ROI points removed           O == O'
+:func:`permutation_invariance`   points reordered                     O == O'
+:func:`duplication_invariance`   some points repeated                 O == O'
+:func:`rotation_equivariance`    cloud and ROI turned by θ            O turned by θ
+===============================  ===================================  ======================
+
+MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
+100 and 1000) scattered outside the ROI, z and intensity uniform over the frame's ranges, "outside"
+holding for the exact polygons and for Apollo's 0.25 m bitmap with a free cell in
+between. The paper checked only the cardinality; :func:`mr1_subset` checks what MR1
+says, every source obstacle keeping its own match
+(:func:`~pytest_metamorphic.core.matching.one_to_one`) in the follow-up.
+
+The equalities are exact: a perception stack that filters by ROI first and treats the
+cloud as a set of points (as :class:`~pytest_metamorphic.lidar.perception.ReferencePerception`
+does) cannot tell the inputs apart. Rotation is the exception; see
+:func:`rotation_equivariance` for its tolerances and why they are needed.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pytest_metamorphic.core.engine import MetamorphicRelation
+from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES
+from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.relations.lidar.geometry import RotatedObstacles, rotation_equivariance
+from pytest_metamorphic.relations.lidar.invariance import (
+    PACKET_POINTS,
+    duplication_invariance,
+    permutation_invariance,
+)
+from pytest_metamorphic.relations.lidar.noise import (
+    DEFAULT_NOISE,
+    NoiseSize,
+    mr1_cardinality,
+    mr1_subset,
+    outside_noise_invariance,
+    outside_removal,
+)
+
+__all__ = [
+    "DEFAULT_NOISE",
+    "PACKET_POINTS",
+    "PAPER_NOISE_SIZES",
+    "ObstacleScope",
+    "RotatedObstacles",
+    "duplication_invariance",
+    "lidar_relations",
+    "mr1_cardinality",
+    "mr1_subset",
+    "outside_noise_invariance",
+    "outside_removal",
+    "permutation_invariance",
+    "rotation_equivariance",
+]
+
+
+def lidar_relations(
+    *,
+    noise: NoiseSize = DEFAULT_NOISE,
+    rotation: Literal["quarter_turns", "any"] = "quarter_turns",
+    scope: ScopeLike = "roi",
+) -> list[MetamorphicRelation]:
+    """The whole library, for ``@metamorphic(relations=lidar_relations())``.
+
+    ``noise`` is the ``n`` of the three noise relations; ``rotation`` the ``angles`` of
+    :func:`rotation_equivariance`; ``scope`` which obstacles the ROI-related relations
+    judge (default: those mostly inside the ROI; ``"all"`` for every obstacle).
+    """
+    as_scope(scope)
+    return [
+        mr1_subset(n=noise, scope=scope),
+        mr1_cardinality(n=noise, scope=scope),
+        outside_noise_invariance(n=noise, scope=scope),
+        outside_removal(scope=scope),
+        permutation_invariance(),
+        duplication_invariance(),
+        rotation_equivariance(angles=rotation, scope=scope),
+    ]

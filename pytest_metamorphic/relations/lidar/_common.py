@@ -1,0 +1,30 @@
+"""Helpers shared by the LiDAR relation modules."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.obstacles import Box
+
+
+def _frame(value: Any) -> Frame:
+    if not isinstance(value, Frame):
+        raise InvalidArgument(
+            f"LiDAR relations need Frame source inputs (with .roi), got {type(value).__name__}"
+        )
+    return value
+
+
+def _check_size(value: Any, name: str, *, allow_none: bool = False) -> None:
+    if value is None and allow_none:
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InvalidArgument(f"{name}={value!r} must be a positive int")
+
+
+def _as_box(value: Any, which: str) -> Box:
+    if not isinstance(value, Box):
+        raise InvalidArgument(f"rotation relations need Box outputs; a {which} item is {value!r}")
+    return value
