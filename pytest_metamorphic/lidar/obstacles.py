@@ -113,6 +113,12 @@ class Box:
             (c * x - s * y, s * x + c * y, z), self.size, yaw, self.label, self.score, self.points
         )
 
+    def mirrored(self) -> Box:
+        """The box reflected in the sensor's x axis (y -> -y): the heading changes sign."""
+        x, y, z = self.center
+        yaw = math.remainder(-self.yaw, 2.0 * math.pi)
+        return Box((x, -y, z), self.size, yaw, self.label, self.score, self.points)
+
     def translated(self, dx: float, dy: float, dz: float = 0.0) -> Box:
         """The box moved by ``(dx, dy, dz)`` metres."""
         x, y, z = self.center

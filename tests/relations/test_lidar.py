@@ -20,6 +20,7 @@ from pytest_metamorphic.lidar.io import read_bin
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant
+from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.lidar.perturb import (
     DropPoints,
     DuplicatePoints,
@@ -29,10 +30,12 @@ from pytest_metamorphic.lidar.perturb import (
 )
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
+from pytest_metamorphic.lidar.symmetry import MirrorAcrossX
 from pytest_metamorphic.relations.lidar import (
     RotatedObstacles,
     duplication_invariance,
     lidar_relations,
+    mirror_symmetry,
     mr1_subset,
     outside_removal,
     rotation_equivariance,
@@ -166,6 +169,61 @@ def test_quarter_turns_are_exact_for_the_reference(degrees: int) -> None:
     frame = street()
     rotation = RotateAboutSensor(math.radians(degrees))
     assert _check(rotation_equivariance(), frame, rotation.apply(frame), rotation.params(), SUT)
+
+
+# -- mirror symmetry ----------------------------------------------------------------------------
+
+
+@needs_kitti
+@pytest.mark.parametrize("system", [SUT, WholeScenePerception()], ids=["reference", "whole_scene"])
+def test_mirror_symmetry_holds_on_every_kitti_sweep_and_a_rendered_street(system) -> None:
+    """Validity: 0 violations over the 7 follow-ups (one per frame: the mirror image is
+    unique), for the ROI-first reference and the whole-scene detector."""
+    relation = mirror_symmetry()
+    mirror = MirrorAcrossX()
+    for frame in [street(), *(kitti_frame(index) for index in range(6))]:
+        followup = mirror.apply(frame)
+        source_output, followup_output = system(frame), system(followup)
+        verdict = relation.relation.check(
+            source_output, followup_output, CheckContext(frame, followup, mirror.params(), 0)
+        )
+        assert verdict.holds, verdict.explanation
+    assert mirror_symmetry().name in {r.name for r in lidar_relations()}
+
+
+@needs_kitti
+def test_mirror_catches_a_turned_output_frame_that_rotations_cannot() -> None:
+    """A wrong yaw extrinsic turns every box 2 degrees about the sensor: rotations commute
+    with it (quarter turns and any angle hold), the noise relations cannot see it, the
+    reflection does."""
+    faulty = mutant("turned_output_frame")
+    for frame in (street(), kitti_frame(0)):
+        for degrees in (90, 180, 270):
+            rotation = RotateAboutSensor(math.radians(degrees))
+            followup = rotation.apply(frame)
+            assert _check(rotation_equivariance(), frame, followup, rotation.params(), faulty)
+        noise = NoiseOutsideROI.from_seeds(frame, list(range(1000)))
+        assert _check(mr1_subset(), frame, noise.apply(frame), noise.params(), faulty)
+        mirrored = MirrorAcrossX().apply(frame)
+        assert not _check(mirror_symmetry(), frame, mirrored, {}, faulty)
+        assert _check(mirror_symmetry(), frame, mirrored, {}, SUT)
+
+
+def test_mirror_image_of_a_frame_reflects_points_roi_and_boxes() -> None:
+    frame = street()
+    mirrored = MirrorAcrossX().apply(frame)
+    np.testing.assert_array_equal(mirrored.cloud.points[:, 1], -frame.cloud.points[:, 1])
+    np.testing.assert_array_equal(
+        mirrored.cloud.points[:, [0, 2, 3]], frame.cloud.points[:, [0, 2, 3]]
+    )
+    inside = frame.roi.contains(frame.cloud.points, method="exact")
+    assert np.array_equal(mirrored.roi.contains(mirrored.cloud.points, method="exact"), inside)
+    for box, image in zip(frame.boxes, mirrored.boxes, strict=True):
+        assert image.center == pytest.approx((box.center[0], -box.center[1], box.center[2]))
+        assert image.yaw == pytest.approx(math.remainder(-box.yaw, 2 * math.pi))
+        assert image.mirrored().center == pytest.approx(box.center)
+    with pytest.raises(InvalidArgument, match="Frame"):
+        MirrorAcrossX().apply("frame")  # type: ignore[arg-type]
 
 
 # -- the rotation check itself ---------------------------------------------------------------------

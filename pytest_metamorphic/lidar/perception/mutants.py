@@ -21,6 +21,8 @@ order_dependent_voxels      voxel filter keeping the first point of each voxel
 grid_anchored_at_sweep      clustering grid anchored at the sweep's bounding box
 axis_aligned_boxes          axis-aligned bounding boxes instead of MinBox
 raw_point_count             small objects kept by raw point count (repeats count twice)
+turned_output_frame         boxes reported in a frame turned 2 degrees about the sensor (a
+                            wrong yaw extrinsic applied to the detections)
 ==========================  =================================================================
 """
 
@@ -32,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Clusters, cluster_points
 from pytest_metamorphic.lidar.perception.ground import ground_heights
 from pytest_metamorphic.lidar.perception.minbox import MinBox
@@ -250,6 +253,25 @@ class RawPointCount(ReferencePerception):
         return enough & (clusters.cells >= self.params.min_cells) & (top >= self.params.min_height)
 
 
+class TurnedOutputFrame(ReferencePerception):
+    """Boxes reported in a frame turned ``degrees`` about the sensor.
+
+    A yaw extrinsic (sensor to vehicle) calibrated wrong and applied to the detections:
+    positions and headings turn together, consistently in every frame, so the boxes look
+    plausible and every relation that commutes with rotations about the sensor (noise,
+    removal, reordering, rotation itself) is blind to it. A reflection is not.
+    """
+
+    name = "turned_output_frame"
+    degrees = 2.0
+
+    def build_boxes(
+        self, points: NDArray[np.float32], ground_z: NDArray[np.float32], clusters: Clusters
+    ) -> list[Box]:
+        theta = math.radians(self.degrees)
+        return [box.rotated(theta) for box in super().build_boxes(points, ground_z, clusters)]
+
+
 def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
     """(n,) int64: one key per voxel of edge ``size`` (cells packed into one integer)."""
     cells = np.floor(coordinates / np.float32(size)).astype(np.int64)
@@ -275,6 +297,7 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         GridAnchoredAtSweep,
         AxisAlignedBoxes,
         RawPointCount,
+        TurnedOutputFrame,
     )
 }
 

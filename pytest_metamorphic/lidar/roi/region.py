@@ -232,6 +232,19 @@ class ROI:
             raster_range=self.raster_range,
         )
 
+    def mirrored(self) -> ROI:
+        """The ROI reflected in the sensor's x axis (y -> -y), rasterised afresh.
+
+        Vertex order is reversed so every polygon keeps its orientation.
+        """
+        flip = np.array([1.0, -1.0])
+        return ROI(
+            tuple(np.ascontiguousarray((p * flip)[::-1]) for p in self.polygons),
+            cell_size=self.cell_size,
+            extend_dist=self.extend_dist,
+            raster_range=self.raster_range,
+        )
+
     def translated(self, dx: float, dy: float) -> ROI:
         """The ROI shifted by ``(dx, dy)`` metres."""
         shift = np.array([_finite_float(dx, "dx"), _finite_float(dy, "dy")])

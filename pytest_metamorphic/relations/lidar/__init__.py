@@ -15,6 +15,7 @@ relation                         follow-up                            expected o
 :func:`permutation_invariance`   points reordered                     O == O'
 :func:`duplication_invariance`   some points repeated                 O == O'
 :func:`rotation_equivariance`    cloud and ROI turned by θ            O turned by θ
+:func:`mirror_symmetry`          cloud and ROI mirrored (y -> -y)     O mirrored
 ===============================  ===================================  ======================
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
@@ -26,8 +27,8 @@ says, every source obstacle keeping its own match
 
 The equalities are exact: a perception stack that filters by ROI first and treats the
 cloud as a set of points (as :class:`~pytest_metamorphic.lidar.perception.ReferencePerception`
-does) cannot tell the inputs apart. Rotation is the exception; see
-:func:`rotation_equivariance` for its tolerances and why they are needed.
+does) cannot tell the inputs apart. Rotation and reflection move the obstacles; see
+:func:`rotation_equivariance` and :func:`mirror_symmetry` for their tolerances.
 """
 
 from __future__ import annotations
@@ -37,7 +38,13 @@ from typing import Literal
 from pytest_metamorphic.core.engine import MetamorphicRelation
 from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.relations.lidar.geometry import RotatedObstacles, rotation_equivariance
+from pytest_metamorphic.relations.lidar.geometry import (
+    MirroredObstacles,
+    MovedObstacles,
+    RotatedObstacles,
+    mirror_symmetry,
+    rotation_equivariance,
+)
 from pytest_metamorphic.relations.lidar.invariance import (
     PACKET_POINTS,
     duplication_invariance,
@@ -56,10 +63,13 @@ __all__ = [
     "DEFAULT_NOISE",
     "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
+    "MirroredObstacles",
+    "MovedObstacles",
     "ObstacleScope",
     "RotatedObstacles",
     "duplication_invariance",
     "lidar_relations",
+    "mirror_symmetry",
     "mr1_cardinality",
     "mr1_subset",
     "outside_noise_invariance",
@@ -90,4 +100,5 @@ def lidar_relations(
         permutation_invariance(),
         duplication_invariance(),
         rotation_equivariance(angles=rotation, scope=scope),
+        mirror_symmetry(scope=scope),
     ]

@@ -17,19 +17,26 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perturb import RotateAboutSensor
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.symmetry import MirrorAcrossX
 from pytest_metamorphic.relations.lidar._common import _as_box, _frame
 
-__all__ = ["RotatedObstacles", "rotation_equivariance"]
+__all__ = [
+    "MirroredObstacles",
+    "MovedObstacles",
+    "RotatedObstacles",
+    "mirror_symmetry",
+    "rotation_equivariance",
+]
 
 
-class RotatedObstacles(Relation):
-    """``O'`` is ``O`` turned by the follow-up's ``theta_deg`` about the sensor, within tolerances.
+class MovedObstacles(Relation):
+    """``O'`` is ``O`` moved as the scene was (turned, mirrored), within tolerances.
 
     Compared are the *clear* obstacles of either side: labelled car, pedestrian or
     cyclist, with at least ``min_points`` points, and whose footprint circle stays more
-    than ``boundary_margin`` metres from the ROI's edges (the rotated ROI is rasterised
+    than ``boundary_margin`` metres from the ROI's edges (the moved ROI is rasterised
     afresh, as Apollo does every frame, so cells along its edges differ). Each clear
-    source obstacle, turned, needs its own follow-up obstacle (of the same label when
+    source obstacle, moved, needs its own follow-up obstacle (of the same label when
     ``same_label``) with the centre within ``center_tolerance``, length and width each
     within ``size_tolerance`` and, for elongated boxes (length - width > 0.3 m), the heading within
     ``yaw_tolerance`` degrees modulo 180 (a box's front is not defined); and each clear
@@ -69,19 +76,23 @@ class RotatedObstacles(Relation):
         self.boundary_margin = float(boundary_margin)
         self.same_label = same_label
         self.name = (
-            f"rotated(centre<={center_tolerance:g} m, size<={size_tolerance:g} m, "
+            f"{self.moved}(centre<={center_tolerance:g} m, size<={size_tolerance:g} m, "
             f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''}; "
             f"{self.scope.describe()})"
         )
 
+    moved = "moved"
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        """Where ``box`` should be in the follow-up."""
+        raise NotImplementedError
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        return {}
+
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
-        if "theta_deg" not in context.params:
-            raise InvalidArgument(
-                f"{self.name} needs the follow-up's rotation in params['theta_deg'] "
-                "(use rotation_equivariance() or RotateAboutSensor.params())"
-            )
-        theta = math.radians(float(context.params["theta_deg"]))
-        expected = [_as_box(box, "source").rotated(theta) for box in source_output]
+        moved = self.move_details(context)  # validates the follow-up's parameters first
+        expected = [self.move(_as_box(box, "source"), context) for box in source_output]
         found = [_as_box(box, "follow-up") for box in followup_output]
         roi = getattr(context.followup_input, "roi", None)
         # Judged in the follow-up's frame: the turned source boxes and the found ones.
@@ -90,7 +101,7 @@ class RotatedObstacles(Relation):
         missing = self._unmatched(expected, self._clear(expected, roi, judged_expected), found)
         extra = self._unmatched(found, self._clear(found, roi, judged_found), expected)
         details = {
-            "theta_deg": context.params["theta_deg"],
+            **moved,
             "missing": [],
             "extra": [],
             "scope": self.scope.describe(),
@@ -100,7 +111,7 @@ class RotatedObstacles(Relation):
         }
         if not missing and not extra:
             return Verdict(True, self.name, details=details)
-        lines = [f"source {expected[i].describe()} (turned) has no match" for i in missing]
+        lines = [f"source {expected[i].describe()} ({self.moved}) has no match" for i in missing]
         lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
         details["missing"] = [expected[i].describe() for i in missing]
         details["extra"] = [found[j].describe() for j in extra]
@@ -161,6 +172,37 @@ class RotatedObstacles(Relation):
         elongated = a.size[0] - a.size[1] > 0.3 and b.size[0] - b.size[1] > 0.3
         turned = abs(math.remainder(a.yaw - b.yaw, math.pi))
         return distance, not (elongated and turned > self.yaw_tolerance)
+
+
+class RotatedObstacles(MovedObstacles):
+    """``O'`` is ``O`` turned by the follow-up's ``theta_deg`` about the sensor (see
+    :class:`MovedObstacles` for what is compared and the tolerances)."""
+
+    moved = "turned"
+
+    def _theta(self, context: CheckContext) -> float:
+        if "theta_deg" not in context.params:
+            raise InvalidArgument(
+                f"{self.name} needs the follow-up's rotation in params['theta_deg'] "
+                "(use rotation_equivariance() or RotateAboutSensor.params())"
+            )
+        return math.radians(float(context.params["theta_deg"]))
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        return box.rotated(self._theta(context))
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        self._theta(context)
+        return {"theta_deg": context.params["theta_deg"]}
+
+
+class MirroredObstacles(MovedObstacles):
+    """``O'`` is ``O`` reflected in the sensor's x axis (see :class:`MovedObstacles`)."""
+
+    moved = "mirrored"
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        return box.mirrored()
 
 
 def rotation_equivariance(
@@ -232,3 +274,43 @@ def rotation_equivariance(
 
     label = name or f"cloud and ROI turned ({angles}) => O turned"
     return MetamorphicRelation(label, followup, relation)
+
+
+def mirror_symmetry(
+    *,
+    center_tolerance: float = 0.02,
+    size_tolerance: float = 0.02,
+    yaw_tolerance: float = 1.0,
+    min_points: int = 0,
+    boundary_margin: float = 0.5,
+    scope: ScopeLike = "roi",
+    name: str = "cloud and ROI mirrored (y -> -y) => O mirrored",
+) -> MetamorphicRelation:
+    """Reflecting the cloud and the ROI in the car's x axis reflects the obstacles.
+
+    The follow-up is the source's mirror image
+    (:class:`~pytest_metamorphic.lidar.symmetry.MirrorAcrossX`): a left-hand-traffic scene
+    from a right-hand one. Precondition: a detector whose
+    bird's-eye grids are anchored at the sensor (a reflection maps them onto themselves)
+    and which prefers no side. Tolerances as for quarter turns (2 cm, 2 cm, 1 degree,
+    labels equal), obstacles at least ``boundary_margin`` from the ROI's edge (the mirrored
+    ROI is rasterised afresh). It catches what rotations cannot: a detector that reports
+    its boxes in a frame turned about the sensor (a wrong yaw extrinsic) commutes with
+    every rotation, but not with a reflection.
+    """
+    relation = MirroredObstacles(
+        center_tolerance=center_tolerance,
+        size_tolerance=size_tolerance,
+        yaw_tolerance=yaw_tolerance,
+        min_points=min_points,
+        boundary_margin=boundary_margin,
+        same_label=True,
+        scope=scope,
+    )
+
+    def followup(frame: Any) -> st.SearchStrategy[Followup]:
+        frame = _frame(frame)
+        mirror = MirrorAcrossX()
+        return st.just(mirror).map(lambda m: Followup(m.apply(frame), params=m.params()))
+
+    return MetamorphicRelation(name, followup, relation)
