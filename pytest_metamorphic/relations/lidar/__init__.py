@@ -16,6 +16,8 @@ relation                         follow-up                            expected o
 :func:`duplication_invariance`   some points repeated                 O == O'
 :func:`rotation_equivariance`    cloud and ROI turned by θ            O turned by θ
 :func:`mirror_symmetry`          cloud and ROI mirrored (y -> -y)     O mirrored
+:func:`beam_loss`                1-4 lasers return nothing            well-covered O kept
+:func:`packet_loss`              1-10 packets (azimuth blocks) lost   well-covered O kept
 ===============================  ===================================  ======================
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
@@ -38,6 +40,12 @@ from typing import Literal
 from pytest_metamorphic.core.engine import MetamorphicRelation
 from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.relations.lidar.faults import (
+    PACKET_DEGREES,
+    CoveredObstaclesKept,
+    beam_loss,
+    packet_loss,
+)
 from pytest_metamorphic.relations.lidar.geometry import (
     MirroredObstacles,
     MovedObstacles,
@@ -61,12 +69,15 @@ from pytest_metamorphic.relations.lidar.noise import (
 
 __all__ = [
     "DEFAULT_NOISE",
+    "PACKET_DEGREES",
     "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
+    "CoveredObstaclesKept",
     "MirroredObstacles",
     "MovedObstacles",
     "ObstacleScope",
     "RotatedObstacles",
+    "beam_loss",
     "duplication_invariance",
     "lidar_relations",
     "mirror_symmetry",
@@ -74,6 +85,7 @@ __all__ = [
     "mr1_subset",
     "outside_noise_invariance",
     "outside_removal",
+    "packet_loss",
     "permutation_invariance",
     "rotation_equivariance",
 ]
@@ -101,4 +113,6 @@ def lidar_relations(
         duplication_invariance(),
         rotation_equivariance(angles=rotation, scope=scope),
         mirror_symmetry(scope=scope),
+        beam_loss(scope=scope),
+        packet_loss(scope=scope),
     ]
