@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from pytest_metamorphic.core.campaign import campaign_test
-from pytest_metamorphic.lidar.campaign import mr1_campaign
+from pytest_metamorphic.lidar.campaign import fault_campaign, mr1_campaign
 from pytest_metamorphic.lidar.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
@@ -68,3 +68,27 @@ test_kitti_mr1_full_cloud_ground = campaign_test(
     ),
     shards=len(frames),
 )
+
+# Sensor faults as campaigns: a robustness curve per relation (violation rate per severity,
+# with Wilson intervals), like Robo3D's corruption curves but with a relation as the oracle.
+dense = mutant("dense_min_points")  # a 40-point minimum cluster size, tuned on 64 beams
+
+
+def dense_system(frame: Frame) -> list[Box]:
+    return dense(frame.cloud, frame.roi)
+
+
+test_kitti_dead_beams_reference = campaign_test(
+    fault_campaign(
+        reference_system, fault="beam_loss", name="dead beams KITTI reference", frames=frames,
+        followups=10,
+    ),
+    shards=len(frames),
+)  # fmt: skip
+test_kitti_dead_beams_dense_min_points = campaign_test(
+    fault_campaign(
+        dense_system, fault="beam_loss", name="dead beams KITTI mutant dense_min_points",
+        frames=frames, followups=10,
+    ),
+    shards=len(frames),
+)  # fmt: skip

@@ -23,9 +23,10 @@ and run ``pytest --mt-campaign``.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -33,6 +34,12 @@ from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
+from pytest_metamorphic.lidar.faults import (
+    PACKET_DEGREES,
+    CoveredObstaclesKept,
+    DropAzimuthBlock,
+    DropRings,
+)
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
@@ -42,7 +49,17 @@ from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
 from pytest_metamorphic.lidar.scene import render
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope, obstacles_kept
 
-__all__ = ["box_label", "mr1_campaign", "noise_followup", "recorded_frames", "synthetic_frames"]
+__all__ = [
+    "FAULT_SEVERITIES",
+    "box_label",
+    "dead_beams_followup",
+    "fault_campaign",
+    "lost_packets_followup",
+    "mr1_campaign",
+    "noise_followup",
+    "recorded_frames",
+    "synthetic_frames",
+]
 
 SourceFn = Callable[[np.random.Generator, int], Frame]
 DEFAULT_SYNTHETIC_SOURCES = 1000  # the paper's frame count
@@ -160,8 +177,30 @@ def mr1_campaign(
         "out of scope" column counts those pairs). ``"all"``: every obstacle.
     """
     chosen = as_scope(scope)
+    _check_system(system)
+    source, sources = _frame_source(frames, sources)
+    return Campaign(
+        name=name,
+        source=source,
+        followup=noise_followup,
+        system=system,
+        relation=obstacles_kept(matcher=matcher or IoUMatcher(), scope=chosen),
+        sizes=tuple(sizes),
+        sources=sources,
+        followups=followups,
+        seed=seed,
+        category=box_label,
+        counted=None if chosen.everything else _Judged(chosen),
+    )
+
+
+def _check_system(system: Any) -> None:
     if not callable(system):
         raise InvalidArgument(f"system={system!r} must be callable (Frame -> list of Box)")
+
+
+def _frame_source(frames: Any, sources: int | None) -> tuple[SourceFn, int]:
+    """The campaign's source function and source count, from the ``frames`` argument."""
     if frames is None:
         source = synthetic_frames()
     elif isinstance(frames, FrameCatalog):
@@ -179,13 +218,95 @@ def mr1_campaign(
         sources = DEFAULT_SYNTHETIC_SOURCES if available is None else available
     elif available is not None and isinstance(sources, int) and sources > available:
         raise InvalidArgument(f"sources={sources} but the recording holds {available} frames")
+    return source, sources
+
+
+# -- sensor faults: robustness curves per relation ---------------------------------------------
+
+#: Default severities: dead lasers (of 64), lost packets (of 1.04 degrees each). The
+#: relation holds for the reference pipeline up to 8 dead lasers on the KITTI sweeps; with
+#: 16 it loses 1 well-covered obstacle in 24 follow-ups (beyond the relation's validity).
+FAULT_SEVERITIES: dict[str, tuple[int, ...]] = {
+    "beam_loss": (1, 2, 4, 8),
+    "packet_loss": (1, 5, 10, 20, 40),
+}
+
+
+def dead_beams_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """``severity`` random lasers of the HDL-64E return nothing."""
+    rings = rng.choice(HDL64E.lasers, size=severity, replace=False)
+    fault = DropRings(tuple(int(r) for r in rings))
+    return Followup(fault.apply(frame), params=fault.params())
+
+
+def lost_packets_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """``severity`` consecutive packets lost, from a random azimuth."""
+    start = float(rng.uniform(0.0, 2 * math.pi))
+    fault = DropAzimuthBlock(start, math.radians(PACKET_DEGREES * severity))
+    return Followup(fault.apply(frame), params={**fault.params(), "packets": severity})
+
+
+_FAULT_FOLLOWUPS = {"beam_loss": dead_beams_followup, "packet_loss": lost_packets_followup}
+
+
+def fault_campaign(
+    system: Callable[[Frame], Sequence[Box]],
+    *,
+    fault: Literal["beam_loss", "packet_loss"],
+    name: str,
+    frames: SourceFn | FrameCatalog | str | os.PathLike[str] | None = None,
+    sources: int | None = None,
+    severities: Sequence[int] | None = None,
+    followups: int = 1,
+    seed: int = 0,
+    min_points: int = 30,
+    min_share: float = 0.5,
+    min_height_share: float = 0.8,
+    min_iou: float = 0.1,
+    scope: ScopeLike = "roi",
+) -> Campaign:
+    """A sensor-fault relation as a campaign: violation rates per severity, with Wilson
+    intervals, i.e. a robustness curve per relation (Robo3D reports mAP drops; this
+    reports how often a well-covered obstacle is lost).
+
+    Parameters
+    ----------
+    system : callable(Frame) -> sequence of Box
+    fault : {"beam_loss", "packet_loss"}
+        Dead lasers (severity: how many of the 64) or lost packets (severity: how many
+        consecutive 1.04-degree blocks).
+    name, frames, sources, followups, seed, scope
+        As for :func:`mr1_campaign`.
+    severities : sequence of int, optional
+        Default :data:`FAULT_SEVERITIES` for the fault.
+    min_points, min_share, min_height_share, min_iou
+        What counts as well covered and as kept
+        (:class:`~pytest_metamorphic.lidar.faults.CoveredObstaclesKept`).
+    """
+    if fault not in _FAULT_FOLLOWUPS:
+        raise InvalidArgument(f"fault={fault!r} must be one of {sorted(_FAULT_FOLLOWUPS)}")
+    chosen = as_scope(scope)
+    _check_system(system)
+    levels = tuple(FAULT_SEVERITIES[fault] if severities is None else severities)
+    limit = HDL64E.lasers if fault == "beam_loss" else int(360 / PACKET_DEGREES)
+    if not levels or not all(
+        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= limit for v in levels
+    ):
+        raise InvalidArgument(f"severities={severities!r} must be ints in [1, {limit}]")
+    source, sources = _frame_source(frames, sources)
     return Campaign(
         name=name,
         source=source,
-        followup=noise_followup,
+        followup=_FAULT_FOLLOWUPS[fault],
         system=system,
-        relation=obstacles_kept(matcher=matcher or IoUMatcher(), scope=chosen),
-        sizes=tuple(sizes),
+        relation=CoveredObstaclesKept(
+            min_points=min_points,
+            min_share=min_share,
+            min_height_share=min_height_share,
+            min_iou=min_iou,
+            scope=chosen,
+        ),
+        sizes=levels,
         sources=sources,
         followups=followups,
         seed=seed,

@@ -22,13 +22,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.obstacles import Box, bev_iou
+from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
-__all__ = ["DropAzimuthBlock", "DropRings", "RingMethod", "derive_rings"]
+__all__ = [
+    "PACKET_DEGREES",
+    "CoveredObstaclesKept",
+    "DropAzimuthBlock",
+    "DropRings",
+    "RingMethod",
+    "derive_rings",
+]
 
 RingMethod = Literal["auto", "field", "scan_order", "elevation"]
+PACKET_DEGREES = 1.04
+"""Azimuth covered by one HDL-64E data packet at 10 Hz (6 firings of 0.1728 degrees)."""
 _METHODS = ("auto", "field", "scan_order", "elevation")
 
 
@@ -232,3 +244,115 @@ class DropAzimuthBlock:
             "lost_block_start_deg": round(math.degrees(self.start), 3),
             "lost_block_width_deg": round(math.degrees(self.width), 3),
         }
+
+
+# -- what a fault must leave intact ---------------------------------------------------------
+
+
+def _frames(context: CheckContext) -> tuple[Frame, Frame]:
+    frames = (context.source_input, context.followup_input)
+    if not all(isinstance(frame, Frame) for frame in frames):
+        raise InvalidArgument("the coverage check needs Frame inputs on both sides")
+    return frames  # type: ignore[return-value]
+
+
+def _boxes(values: Any, which: str) -> list[Box]:
+    boxes = list(values)
+    for box in boxes:
+        if not isinstance(box, Box):
+            raise InvalidArgument(
+                f"the coverage check needs Box outputs; a {which} item is {box!r}"
+            )
+    return boxes
+
+
+def _count(value: Any, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InvalidArgument(f"{name}={value!r} must be a positive int")
+    return value
+
+
+def _fraction(value: Any, name: str, *, upper: float = 1.0) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidArgument(f"{name}={value!r} must be a number in [0, {upper:g}]")
+    if not (math.isfinite(value) and 0.0 <= value <= upper):
+        raise InvalidArgument(f"{name}={value!r} must be a number in [0, {upper:g}]")
+    return float(value)
+
+
+class CoveredObstaclesKept(Relation):
+    """Every judged source obstacle that the fault leaves *well covered* is still detected.
+
+    Well covered: at least ``min_points`` of the follow-up cloud's points, and at least
+    ``min_share`` of the points it had, lie in the source obstacle's box, and they still
+    span at least ``min_height_share`` of its points' vertical extent (a fault that takes
+    an obstacle's lowest rows takes the ground next to it too, and a detector may then
+    fairly read what is left as ground: seen on KITTI, a car at 38 m losing two rings).
+    Detected: some
+    follow-up obstacle overlaps its bird's-eye footprint with IoU >= ``min_iou`` (any
+    label: fewer points may turn a car into an unknown object, and the box may shrink).
+    Obstacles labelled ``unknown`` and those the ``scope`` does not judge are skipped.
+    """
+
+    def __init__(
+        self,
+        *,
+        min_points: int = 30,
+        min_share: float = 0.5,
+        min_height_share: float = 0.8,
+        min_iou: float = 0.1,
+        scope: ScopeLike = "roi",
+    ) -> None:
+        self.min_points = _count(min_points, "min_points")
+        self.min_share = _fraction(min_share, "min_share")
+        self.min_height_share = _fraction(min_height_share, "min_height_share")
+        self.min_iou = _fraction(min_iou, "min_iou")
+        self.scope: ObstacleScope = as_scope(scope)
+        self.name = (
+            f"well-covered obstacles kept (>= {min_points} points and >= {min_share:.0%} "
+            f"left over >= {min_height_share:.0%} of the height, footprint IoU >= "
+            f"{min_iou:g}; {self.scope.describe()})"
+        )
+
+    def covered(
+        self, boxes: Sequence[Box], source: Frame, followup: Frame
+    ) -> list[tuple[int, int, int]]:
+        """``(index, points before, points after)`` of the judged boxes left well covered."""
+        judged = self.scope.judged(list(boxes), source)
+        chosen = []
+        for index, box in enumerate(boxes):
+            if not judged[index] or box.label == "unknown":
+                continue
+            z_before = source.cloud.xyz[box.contains(source.cloud.xyz), 2]
+            z_after = followup.cloud.xyz[box.contains(followup.cloud.xyz), 2]
+            before, after = len(z_before), len(z_after)
+            if after < self.min_points or after < self.min_share * before:
+                continue
+            span = float(z_before.max() - z_before.min())
+            if float(z_after.max() - z_after.min()) >= self.min_height_share * span:
+                chosen.append((index, before, after))
+        return chosen
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        source, followup = _frames(context)
+        boxes = _boxes(source_output, "source")
+        found = _boxes(followup_output, "follow-up")
+        covered = self.covered(boxes, source, followup)
+        overlap = bev_iou([boxes[i] for i, _, _ in covered], found) if covered and found else None
+        missing = [
+            (index, before, after)
+            for row, (index, before, after) in enumerate(covered)
+            if overlap is None or overlap[row].max() < self.min_iou
+        ]
+        details = {
+            "covered": len(covered),
+            "missing": [boxes[i].describe() for i, _, _ in missing],
+            "scope": self.scope.describe(),
+        }
+        if not missing:
+            return Verdict(True, self.name, details=details)
+        lines = [
+            f"{boxes[i].describe()} lost although {after} of its {before} points are left"
+            for i, before, after in missing
+        ]
+        return Verdict(False, self.name, "; ".join(lines[:10]), details)

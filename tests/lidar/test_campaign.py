@@ -10,6 +10,8 @@ from pytest_metamorphic.core.campaign import merge_results, run_campaign
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.campaign import (
+    FAULT_SEVERITIES,
+    fault_campaign,
     mr1_campaign,
     noise_followup,
     recorded_frames,
@@ -111,3 +113,28 @@ def test_bad_campaign_arguments_are_named(tmp_path) -> None:
     catalog = FrameCatalog(folder, roi=kitti_label_region())
     with pytest.raises(InvalidArgument, match="holds 6 frames"):
         mr1_campaign(reference_system, name="x", frames=catalog, sources=7)
+
+
+def test_fault_campaigns_give_robustness_curves_per_relation() -> None:
+    """Dead beams and lost packets as campaigns over the KITTI sweeps: the reference loses
+    no well-covered obstacle at any default severity; a detector tuned to a dense sensor
+    loses more the more lasers die (a robustness curve, per relation)."""
+    catalog = FrameCatalog(
+        shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    )
+    for fault in ("beam_loss", "packet_loss"):
+        result = run_campaign(
+            fault_campaign(reference_system, fault=fault, name=fault, frames=catalog, followups=2)
+        )
+        assert sorted(result.sizes) == list(FAULT_SEVERITIES[fault])
+        assert all(c.pairs == 12 and c.violations == 0 for c in result.sizes.values())
+    dense = fault_campaign(
+        system_of("dense_min_points"), fault="beam_loss", name="dense", frames=catalog,
+        followups=4,
+    )  # fmt: skip
+    curve = [counts.violations for _, counts in sorted(run_campaign(dense).sizes.items())]
+    assert curve[-1] > curve[0] and sum(curve) > 0
+    with pytest.raises(InvalidArgument, match="fault"):
+        fault_campaign(reference_system, fault="rain", name="x", frames=catalog)  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="severities"):
+        fault_campaign(reference_system, fault="beam_loss", name="x", severities=(65,))
