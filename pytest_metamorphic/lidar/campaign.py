@@ -262,7 +262,7 @@ def fault_campaign(
     min_points: int = 30,
     min_share: float = 0.5,
     min_height_share: float = 0.8,
-    min_iou: float = 0.1,
+    min_detected: float = 0.5,
     scope: ScopeLike = "roi",
 ) -> Campaign:
     """A sensor-fault relation as a campaign: violation rates per severity, with Wilson
@@ -279,7 +279,7 @@ def fault_campaign(
         As for :func:`mr1_campaign`.
     severities : sequence of int, optional
         Default :data:`FAULT_SEVERITIES` for the fault.
-    min_points, min_share, min_height_share, min_iou
+    min_points, min_share, min_height_share, min_detected
         What counts as well covered and as kept
         (:class:`~pytest_metamorphic.lidar.faults.CoveredObstaclesKept`).
     """
@@ -303,7 +303,7 @@ def fault_campaign(
             min_points=min_points,
             min_share=min_share,
             min_height_share=min_height_share,
-            min_iou=min_iou,
+            min_detected=min_detected,
             scope=chosen,
         ),
         sizes=levels,

@@ -12,6 +12,7 @@ missing rings: a violation reduces to the fewest beams whose loss still fails.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
@@ -26,7 +27,7 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.obstacles import Box, bev_iou
+from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
 __all__ = [
@@ -288,10 +289,10 @@ class CoveredObstaclesKept(Relation):
     span at least ``min_height_share`` of its points' vertical extent (a fault that takes
     an obstacle's lowest rows takes the ground next to it too, and a detector may then
     fairly read what is left as ground: seen on KITTI, a car at 38 m losing two rings).
-    Detected: some
-    follow-up obstacle overlaps its bird's-eye footprint with IoU >= ``min_iou`` (any
-    label: fewer points may turn a car into an unknown object, and the box may shrink).
-    Obstacles labelled ``unknown`` and those the ``scope`` does not judge are skipped.
+    Still detected: at least ``min_detected`` of those remaining points lie in follow-up
+    obstacles (boxes grown by 10 cm; any label and any number of them: fewer points may
+    turn a car into an unknown object, and a lost packet may cut one in two). Obstacles
+    labelled ``unknown`` and those the ``scope`` does not judge are skipped.
     """
 
     def __init__(
@@ -300,18 +301,18 @@ class CoveredObstaclesKept(Relation):
         min_points: int = 30,
         min_share: float = 0.5,
         min_height_share: float = 0.8,
-        min_iou: float = 0.1,
+        min_detected: float = 0.5,
         scope: ScopeLike = "roi",
     ) -> None:
         self.min_points = _count(min_points, "min_points")
         self.min_share = _fraction(min_share, "min_share")
         self.min_height_share = _fraction(min_height_share, "min_height_share")
-        self.min_iou = _fraction(min_iou, "min_iou")
+        self.min_detected = _fraction(min_detected, "min_detected")
         self.scope: ObstacleScope = as_scope(scope)
         self.name = (
             f"well-covered obstacles kept (>= {min_points} points and >= {min_share:.0%} "
-            f"left over >= {min_height_share:.0%} of the height, footprint IoU >= "
-            f"{min_iou:g}; {self.scope.describe()})"
+            f"left over >= {min_height_share:.0%} of the height, >= {min_detected:.0%} of "
+            f"them still in obstacles; {self.scope.describe()})"
         )
 
     def covered(
@@ -336,23 +337,32 @@ class CoveredObstaclesKept(Relation):
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         source, followup = _frames(context)
         boxes = _boxes(source_output, "source")
-        found = _boxes(followup_output, "follow-up")
+        found = [_grown(box) for box in _boxes(followup_output, "follow-up")]
         covered = self.covered(boxes, source, followup)
-        overlap = bev_iou([boxes[i] for i, _, _ in covered], found) if covered and found else None
-        missing = [
-            (index, before, after)
-            for row, (index, before, after) in enumerate(covered)
-            if overlap is None or overlap[row].max() < self.min_iou
-        ]
+        missing = []
+        for index, before, after in covered:
+            remaining = followup.cloud.xyz[boxes[index].contains(followup.cloud.xyz)]
+            detected = np.zeros(len(remaining), dtype=bool)
+            for box in found:
+                detected |= box.contains(remaining)
+            share = float(detected.mean())
+            if share < self.min_detected:
+                missing.append((index, before, after, share))
         details = {
             "covered": len(covered),
-            "missing": [boxes[i].describe() for i, _, _ in missing],
+            "missing": [boxes[i].describe() for i, *_ in missing],
             "scope": self.scope.describe(),
         }
         if not missing:
             return Verdict(True, self.name, details=details)
         lines = [
-            f"{boxes[i].describe()} lost although {after} of its {before} points are left"
-            for i, before, after in missing
+            f"{boxes[i].describe()} lost although {after} of its {before} points are left "
+            f"({share:.0%} of them in follow-up obstacles)"
+            for i, before, after, share in missing
         ]
         return Verdict(False, self.name, "; ".join(lines[:10]), details)
+
+
+def _grown(box: Box, by: float = 0.1) -> Box:
+    length, width, height = box.size
+    return dataclasses.replace(box, size=(length + 2 * by, width + 2 * by, height + 2 * by))

@@ -18,6 +18,7 @@ relation                         follow-up                            expected o
 :func:`mirror_symmetry`          cloud and ROI mirrored (y -> -y)     O mirrored
 :func:`beam_loss`                1-4 lasers return nothing            well-covered O kept
 :func:`packet_loss`              1-10 packets (azimuth blocks) lost   well-covered O kept
+:func:`object_removal`           one car/pedestrian/cyclist removed   the others kept
 ===============================  ===================================  ======================
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
@@ -66,6 +67,7 @@ from pytest_metamorphic.relations.lidar.noise import (
     outside_noise_invariance,
     outside_removal,
 )
+from pytest_metamorphic.relations.lidar.objects import object_removal, removal_candidates
 
 __all__ = [
     "DEFAULT_NOISE",
@@ -83,10 +85,12 @@ __all__ = [
     "mirror_symmetry",
     "mr1_cardinality",
     "mr1_subset",
+    "object_removal",
     "outside_noise_invariance",
     "outside_removal",
     "packet_loss",
     "permutation_invariance",
+    "removal_candidates",
     "rotation_equivariance",
 ]
 
@@ -115,4 +119,5 @@ def lidar_relations(
         mirror_symmetry(scope=scope),
         beam_loss(scope=scope),
         packet_loss(scope=scope),
+        object_removal(scope=scope),
     ]
