@@ -56,6 +56,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pytest_metamorphic.core.minimize import ddmin  # noqa: E402
+from pytest_metamorphic.core.perturbation import as_reducible  # noqa: E402
 from pytest_metamorphic.core.reduction import _orders, reduce_followup  # noqa: E402
 from pytest_metamorphic.core.relations import CheckContext  # noqa: E402
 from pytest_metamorphic.lidar.evaluation import kitti_label_region  # noqa: E402
@@ -266,10 +267,11 @@ def reduce_count_case(name: str, n: int, found: tuple[int, int], budget: int) ->
         check=RELATION.check,
         budget=budget,
     )
-    order = _orders(noise, frame, source_output, followup_output)[0]
+    reducible = as_reducible(noise)
+    order = _orders(reducible, frame, source_output, followup_output)[0]
 
     def fails(chosen: list[int]) -> bool:
-        subset = noise.restrict(sorted(chosen))
+        subset = reducible.restrict(sorted(chosen))
         followup = subset.apply(frame)
         return violates(source_output, system(followup), frame, followup)
 
@@ -316,20 +318,8 @@ def count_driven_section(args: argparse.Namespace, frames: list[int]) -> list[Co
     return cases
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mutants", default=",".join(MUTANTS))
-    parser.add_argument("--sizes", default="100,1000")
-    parser.add_argument("--frames", default="0,1,2,3,4,5")
-    parser.add_argument("--seeds", type=int, default=10, help="numpy seeds tried per frame")
-    parser.add_argument("--budget", type=int, default=10000, help="ddmin SUT-call budget")
-    parser.add_argument("--hypothesis-cap", type=int, default=2000)
-    parser.add_argument("--engine-budget", type=int, default=500)
-    parser.add_argument("--count-mutants", default=",".join(COUNT_DRIVEN))
-    args = parser.parse_args()
-    if not KITTI.is_dir():
-        sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
-    frames = [int(v) for v in args.frames.split(",")]
+def hypothesis_section(args: argparse.Namespace, frames: list[int]) -> str:
+    """Ranked reduction against Hypothesis' shrinker; returns the RESULT keys."""
     cases: list[Case] = []
     missing: list[str] = []
     began = time.perf_counter()
@@ -393,6 +383,33 @@ def main() -> None:
         f"{statistics.median(case.k for case in cases):g}, Hypothesis reached k in "
         f"{reached:.0%}, {elapsed:.0f} s"
     )
+    return (
+        f"proven_minimal={proven:.3f} call_ratio={statistics.median(ratios):.2f} "
+        f"median_k={statistics.median(case.k for case in cases):g} "
+        f"call_ratio_min={min(ratios):.2f} hypothesis_reached_k={reached:.3f} "
+        f"cases={len(cases)} "
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mutants", default=",".join(MUTANTS))
+    parser.add_argument("--sizes", default="100,1000")
+    parser.add_argument("--frames", default="0,1,2,3,4,5")
+    parser.add_argument("--seeds", type=int, default=10, help="numpy seeds tried per frame")
+    parser.add_argument("--budget", type=int, default=10000, help="ddmin SUT-call budget")
+    parser.add_argument("--hypothesis-cap", type=int, default=2000)
+    parser.add_argument("--engine-budget", type=int, default=500)
+    parser.add_argument("--count-mutants", default=",".join(COUNT_DRIVEN))
+    parser.add_argument(
+        "--count-only", action="store_true", help="only the count-driven section (no Hypothesis)"
+    )
+    args = parser.parse_args()
+    if not KITTI.is_dir():
+        sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
+    frames = [int(v) for v in args.frames.split(",")]
+    began = time.perf_counter()
+    keys = "" if args.count_only else hypothesis_section(args, frames)
     counted = count_driven_section(args, frames)
     if not counted:
         sys.exit("no count-driven failures to reduce")
@@ -406,10 +423,7 @@ def main() -> None:
         f"median calls {count_calls:g} (ddmin alone {alone_calls:g}); {elapsed:.0f} s in all"
     )
     print(
-        f"RESULT proven_minimal={proven:.3f} call_ratio={statistics.median(ratios):.2f} "
-        f"median_k={statistics.median(case.k for case in cases):g} "
-        f"call_ratio_min={min(ratios):.2f} hypothesis_reached_k={reached:.3f} "
-        f"cases={len(cases)} count_proven={count_proven:.3f} "
+        f"RESULT {keys}count_proven={count_proven:.3f} "
         f"count_proven_ddmin_alone={alone_proven:.3f} count_calls={count_calls:g} "
         f"count_calls_ddmin_alone={alone_calls:g} count_cases={len(counted)} "
         f"seconds={elapsed:.0f}"
