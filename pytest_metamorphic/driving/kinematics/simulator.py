@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.driving.kinematics.brakes import Brakes
 from pytest_metamorphic.driving.kinematics.control import BrakeCommand, Observation, Track
 from pytest_metamorphic.driving.kinematics.geometry import Box, Point, _centre, _corners, _overlap
 from pytest_metamorphic.driving.kinematics.results import Collision, SimulationResult
@@ -124,22 +124,6 @@ def _classify(ego: Box, heading: float, other: Box) -> tuple[str, str | None]:
     return "side", ("left" if sign_y > 0 else "right")
 
 
-def _as_command(output: Any) -> BrakeCommand:
-    if isinstance(output, BrakeCommand):
-        command = output
-    else:
-        try:
-            command = BrakeCommand(float(output))
-        except (TypeError, ValueError):
-            raise InvalidArgument(
-                f"the controller returned {output!r}; it must return a deceleration in m/s^2 "
-                "(float >= 0) or a BrakeCommand"
-            ) from None
-    if not math.isfinite(command.deceleration):
-        raise InvalidArgument(f"the controller returned a non-finite deceleration {command}")
-    return command
-
-
 def simulate(
     scenario: Scenario,
     controller: Callable[[Observation], float | BrakeCommand] | None = None,
@@ -203,7 +187,6 @@ class _Run:
         offset = scenario.ego_offset
         self.lane = (lane_right - offset, lane_left - offset)
         self.edges = (-road.width / 2 - offset, road.width / 2 - offset)
-        self.delay_steps = round(vehicle.brake_delay / dt)
         # Beyond this centre-to-centre distance along the road no contact is possible.
         self.reach = (vehicle.length + max(a.along for a in self.actors)) / 2 + vehicle.width
 
@@ -252,37 +235,15 @@ class _Run:
     # -- main loop ---------------------------------------------------------------------
     def run(self) -> SimulationResult:
         scenario, dt = self.scenario, self.dt
-        max_deceleration = scenario.vehicle.max_deceleration
         s, v = scenario.ego_start_s, scenario.ego_speed
-        pending = [0.0] * self.delay_steps
-        times: list[float] = []
-        speeds: list[float] = []
-        positions: list[float] = []
-        decels: list[float] = []
-        stages: list[tuple[float, str]] = []
-        first_brake: float | None = None
+        brakes = Brakes(scenario, self.controller, dt)
         collision: Collision | None = None
-        braked = False
         t = 0.0
         if (hit := self._contact(s, t, 0)) is not None:
             collision = self._collision(hit, t, s, v)
         for k in range(self.steps if collision is None else 0):
             t = float(self.times[k])
-            command = BrakeCommand(0.0)
-            if self.controller is not None:
-                command = _as_command(self.controller(self._observe(t, k, s, v)))
-            if command.stage and (not stages or stages[-1][1] != command.stage):
-                stages.append((round(t, 9), command.stage))
-            requested = min(max(command.deceleration, 0.0), max_deceleration)
-            if requested > 0 and first_brake is None:
-                first_brake = t
-            pending.append(requested)
-            applied = pending.pop(0)
-            braked = braked or applied > 0
-            times.append(t)
-            speeds.append(v)
-            positions.append(s)
-            decels.append(applied)
+            applied = brakes.step(t, v, s, lambda: self._observe(t, k, s, v))  # noqa: B023
             s_next, v_next = _advance(s, v, applied, dt)
             t_next = float(self.times[k + 1])
             if (hit := self._contact(s_next, t_next, k + 1)) is not None:
@@ -294,21 +255,9 @@ class _Run:
             s, v, t = s_next, v_next, t_next
             # Euro NCAP ends a test when the car stands still: a dummy that walks into the
             # standing car afterwards is not a collision of the car.
-            if (braked and v <= _STANDSTILL) or self._passed_everyone(s, k + 1):
+            if (brakes.braked and v <= _STANDSTILL) or self._passed_everyone(s, k + 1):
                 break
-        return SimulationResult(
-            scenario=scenario,
-            collision=collision,
-            end_time=round(t, 9),
-            final_speed=v,
-            ego_s=s,
-            first_brake_time=first_brake,
-            stages=tuple(stages),
-            times=np.asarray(times),
-            speeds=np.asarray(speeds),
-            positions=np.asarray(positions),
-            decelerations=np.asarray(decels),
-        )
+        return brakes.result(collision, t, v, s)
 
     def _refine(self, s: float, v: float, a: float, t: float) -> float:
         """Earliest contact time within the step (bisection; the motion is analytic)."""

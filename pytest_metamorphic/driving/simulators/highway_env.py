@@ -34,7 +34,8 @@ from pytest_metamorphic.driving.kinematics import (
     SimulationResult,
     Track,
 )
-from pytest_metamorphic.driving.kinematics.simulator import _as_command, _classify
+from pytest_metamorphic.driving.kinematics.brakes import Brakes
+from pytest_metamorphic.driving.kinematics.simulator import _classify
 from pytest_metamorphic.driving.scenario import PedestrianMotion, Scenario
 
 __all__ = ["HighwayEnvSimulator"]
@@ -210,36 +211,14 @@ class _Run:
 
     # -- main loop ------------------------------------------------------------------
     def run(self) -> SimulationResult:
-        dt, scenario = self.dt, self.scenario
-        max_deceleration = scenario.vehicle.max_deceleration
-        pending = [0.0] * round(scenario.vehicle.brake_delay / dt)
-        times: list[float] = []
-        speeds: list[float] = []
-        positions: list[float] = []
-        decels: list[float] = []
-        stages: list[tuple[float, str]] = []
-        first_brake: float | None = None
+        dt = self.dt
+        brakes = Brakes(self.scenario, self.controller, dt)
         collision: Collision | None = None
-        braked = False
         t, front_s = 0.0, self._front_s()
         for k in range(math.ceil(self.t_end / dt)):
             t = k * dt
-            command = BrakeCommand(0.0)
-            if self.controller is not None:
-                command = _as_command(self.controller(self._observe(t, front_s)))
-            if command.stage and (not stages or stages[-1][1] != command.stage):
-                stages.append((round(t, 9), command.stage))
-            requested = min(max(command.deceleration, 0.0), max_deceleration)
-            if requested > 0 and first_brake is None:
-                first_brake = t
-            pending.append(requested)
-            applied = pending.pop(0)
-            braked = braked or applied > 0
             speed = float(self.car.speed)
-            times.append(t)
-            speeds.append(speed)
-            positions.append(front_s)
-            decels.append(applied)
+            applied = brakes.step(t, speed, front_s, lambda: self._observe(t, front_s))  # noqa: B023
             # Brakes stop the car; they never drive it backwards.
             acceleration = -min(applied, speed / dt)
             limit = self.car.MAX_STEERING_ANGLE
@@ -253,21 +232,9 @@ class _Run:
             collision = self._collision(t, front_s)
             if collision is not None:
                 break
-            if (braked and self.car.speed <= _STANDSTILL) or self._passed_everyone(front_s):
+            if (brakes.braked and self.car.speed <= _STANDSTILL) or self._passed_everyone(front_s):
                 break
-        return SimulationResult(
-            scenario=scenario,
-            collision=collision,
-            end_time=round(t, 9),
-            final_speed=max(float(self.car.speed), 0.0),
-            ego_s=front_s,
-            first_brake_time=first_brake,
-            stages=tuple(stages),
-            times=np.asarray(times),
-            speeds=np.asarray(speeds),
-            positions=np.asarray(positions),
-            decelerations=np.asarray(decels),
-        )
+        return brakes.result(collision, t, max(float(self.car.speed), 0.0), front_s)
 
 
 class _Dummy:
