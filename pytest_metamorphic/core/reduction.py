@@ -107,7 +107,9 @@ class Reduction:
                 f"NOT proven minimal: the budget of {self.budget} SUT calls ran out "
                 "(raise it with --mt-minimize-budget)"
             )
-            if self.count_bound is not None:
+            # Said only when the set is that long prefix's order of size: otherwise a
+            # smaller set was found and "how many" is not what the failure depends on.
+            if self.count_bound is not None and 2 * self.size >= self.count_bound:
                 status += (
                     f"; the first {self.count_bound} ranked element(s) fail and the first "
                     f"{self.count_bound - 1} do not: the failure depends on how many arrive"
