@@ -94,17 +94,19 @@ def test_noise_on_generated_scenes(data):
     _check_outside(followup, source)
 
 
-@settings(settings.get_profile("default"), max_examples=15, database=None)
+# Default profile: every health check on (too_slow and data_too_large included), but no
+# deadline: a per-example time limit is a timing assertion, and a loaded machine (a CI run
+# beside a benchmark) once took 268 ms for an example that usually takes 11.
+@settings(settings.get_profile("default"), max_examples=15, database=None, deadline=None)
 @given(data=st.data())
 def test_a_thousand_points_generate_under_default_settings(data):
-    # Default profile: every health check on (too_slow and data_too_large included).
     followup = data.draw(noise_outside_roi(street(), n=1000))
     assert followup.params["n"] == 1000
     assert len(np.unique(_injected(followup), axis=0)) == 1000  # distinct seeds, points
 
 
 @pytest.mark.slow
-@settings(settings.get_profile("default"), database=None)
+@settings(settings.get_profile("default"), database=None, deadline=None)
 @given(data=st.data())
 def test_a_thousand_points_for_a_full_default_run(data):
     followup = data.draw(noise_outside_roi(street(), n=1000))
