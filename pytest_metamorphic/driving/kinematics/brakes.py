@@ -13,9 +13,22 @@ import numpy as np
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.kinematics.control import BrakeCommand, Observation
 from pytest_metamorphic.driving.kinematics.results import Collision, SimulationResult
+from pytest_metamorphic.driving.kinematics.sensor import Sensor
 from pytest_metamorphic.driving.scenario import Scenario
 
-__all__ = ["Brakes", "as_command"]
+__all__ = ["Brakes", "as_command", "loop_settings"]
+
+
+def loop_settings(dt: Any, sensor: Sensor | None) -> tuple[float, Sensor]:
+    """A simulation loop's step (seconds, in (0, 0.1]) and sensor (default ``Sensor()``)."""
+    if isinstance(dt, bool) or not (
+        isinstance(dt, (int, float)) and math.isfinite(dt) and 0 < dt <= 0.1
+    ):
+        raise InvalidArgument(f"dt={dt!r} must be in (0, 0.1] seconds")
+    sensor = Sensor() if sensor is None else sensor
+    if not isinstance(sensor, Sensor):
+        raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
+    return float(dt), sensor
 
 
 def as_command(output: Any) -> BrakeCommand:

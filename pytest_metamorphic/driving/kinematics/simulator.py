@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.driving.kinematics.brakes import Brakes
+from pytest_metamorphic.driving.kinematics.brakes import Brakes, loop_settings
 from pytest_metamorphic.driving.kinematics.control import BrakeCommand, Observation, Track
 from pytest_metamorphic.driving.kinematics.geometry import Box, Point, _centre, _corners, _overlap
 from pytest_metamorphic.driving.kinematics.results import Collision, SimulationResult
@@ -151,17 +151,11 @@ def simulate(
         raise InvalidArgument(f"scenario={scenario!r} must be a Scenario")
     if controller is not None and not callable(controller):
         raise InvalidArgument(f"controller={controller!r} must be callable(observation)")
-    if isinstance(dt, bool) or not (
-        isinstance(dt, (int, float)) and math.isfinite(dt) and 0 < dt <= 0.1
-    ):
-        raise InvalidArgument(f"dt={dt!r} must be in (0, 0.1] seconds")
-    sensor = Sensor() if sensor is None else sensor
-    if not isinstance(sensor, Sensor):
-        raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
+    dt, sensor = loop_settings(dt, sensor)
     reset = getattr(controller, "reset", None)
     if callable(reset):
         reset()
-    return _Run(scenario, controller, float(dt), sensor).run()
+    return _Run(scenario, controller, dt, sensor).run()
 
 
 class _Run:

@@ -34,7 +34,7 @@ from pytest_metamorphic.driving.kinematics import (
     SimulationResult,
     Track,
 )
-from pytest_metamorphic.driving.kinematics.brakes import Brakes
+from pytest_metamorphic.driving.kinematics.brakes import Brakes, loop_settings
 from pytest_metamorphic.driving.kinematics.simulator import _classify
 from pytest_metamorphic.driving.scenario import PedestrianMotion, Scenario
 
@@ -75,15 +75,7 @@ class HighwayEnvSimulator:
     """
 
     def __init__(self, *, dt: float = 0.01, sensor: Sensor | None = None) -> None:
-        if isinstance(dt, bool) or not (
-            isinstance(dt, (int, float)) and math.isfinite(dt) and 0 < dt <= 0.1
-        ):
-            raise InvalidArgument(f"dt={dt!r} must be in (0, 0.1] seconds")
-        sensor = Sensor() if sensor is None else sensor
-        if not isinstance(sensor, Sensor):
-            raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
-        self.dt = float(dt)
-        self.sensor = sensor
+        self.dt, self.sensor = loop_settings(dt, sensor)
         self.modules = _highway_env()
 
     def __repr__(self) -> str:
