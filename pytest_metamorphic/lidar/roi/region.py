@@ -224,32 +224,25 @@ class ROI:
         """
         theta = _finite_float(theta, "theta")
         c, s = math.cos(theta), math.sin(theta)
-        rotation = np.array([[c, -s], [s, c]])
-        return ROI(
-            tuple(np.ascontiguousarray(p @ rotation.T) for p in self.polygons),
-            cell_size=self.cell_size,
-            extend_dist=self.extend_dist,
-            raster_range=self.raster_range,
-        )
+        return self._moved(lambda p: p @ np.array([[c, -s], [s, c]]).T)
 
     def mirrored(self) -> ROI:
         """The ROI reflected in the sensor's x axis (y -> -y), rasterised afresh.
 
         Vertex order is reversed so every polygon keeps its orientation.
         """
-        flip = np.array([1.0, -1.0])
-        return ROI(
-            tuple(np.ascontiguousarray((p * flip)[::-1]) for p in self.polygons),
-            cell_size=self.cell_size,
-            extend_dist=self.extend_dist,
-            raster_range=self.raster_range,
-        )
+        return self._moved(lambda p: (p * np.array([1.0, -1.0]))[::-1])
 
     def translated(self, dx: float, dy: float) -> ROI:
         """The ROI shifted by ``(dx, dy)`` metres."""
         shift = np.array([_finite_float(dx, "dx"), _finite_float(dy, "dy")])
+        return self._moved(lambda p: p + shift)
+
+    def _moved(self, move: Any) -> ROI:
+        """The ROI of the moved polygons, with the same raster settings (rasterised afresh)."""
+        polygons = tuple(np.ascontiguousarray(move(p)) for p in self.polygons)
         return ROI(
-            tuple(np.ascontiguousarray(p + shift) for p in self.polygons),
+            polygons,
             cell_size=self.cell_size,
             extend_dist=self.extend_dist,
             raster_range=self.raster_range,
