@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import re
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 import conftest
-from pytest_metamorphic import metamorphic
+from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.campaign import run_campaign
 from pytest_metamorphic.core.relations import CheckContext
@@ -25,7 +26,7 @@ from pytest_metamorphic.lidar.campaign import mr1_campaign
 from pytest_metamorphic.lidar.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.obstacles import Box, unmatched_twins
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.ground import GroundParams, ground_heights
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
@@ -43,8 +44,8 @@ needs_kitti = pytest.mark.skipif(not KITTI.is_dir(), reason=f"shared test data n
 WHOLE = WholeScenePerception()
 LIDAR = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.large_base_example]
 # Derandomized: a whole-scene detector has rare *real* edge cases (see
-# test_the_only_changes_in_the_roi_are_at_its_edge), so "no violation" is asserted for a
-# fixed search, 8 sources x 2 follow-ups x 7 relations.
+# test_the_only_changes_in_the_roi_are_at_its_edge); a fixed search, 8 sources x 2
+# follow-ups x 11 relations, where only such an edge case may fail (_only_at_the_roi_edge).
 SEARCH = settings(
     max_examples=8, database=None, deadline=None, derandomize=True, suppress_health_check=LIDAR
 )
@@ -64,25 +65,51 @@ def test_it_reports_obstacles_outside_the_roi_and_the_reference_does_not() -> No
     assert (footprint_overlap(reference, frame.roi) > 0).all()
 
 
+def _only_at_the_roi_edge(search: Callable[[], None]) -> None:
+    """Run ``search``; a violation passes only as the documented edge case: a noise
+    relation, every changed judged obstacle within one raster cell of the ROI's edge (see
+    test_the_only_changes_in_the_roi_are_at_its_edge). The search is derandomized, but
+    which cases Hypothesis explores still varied between runs (a pytest-xdist run found
+    the 7 cm case that a run alone did not)."""
+    try:
+        search()
+    except BaseException as error:  # a violation, or a group of them
+        errors = list(getattr(error, "exceptions", [error]))  # an exception group's parts
+        for violation in errors:
+            if not isinstance(violation, MetamorphicViolation) or not violation.relation.startswith(
+                ("MR1", "noise outside ROI")
+            ):
+                raise
+            frame = violation.record.source
+            lost, new = unmatched_twins(violation.source_output, violation.followup_output)
+            changed = [violation.source_output[i] for i in lost]
+            changed += [violation.followup_output[j] for j in new]
+            judged = DEFAULT_SCOPE.select(changed, frame)
+            edges = [float(frame.roi.boundary_distance(b.corners_bev()).min()) for b in judged]
+            assert edges and max(edges) < frame.roi.cell_size, str(violation)
+
+
 @needs_kitti
-@SEARCH
-@metamorphic(
-    source=st.deferred(lambda: frames(str(KITTI), roi=kitti_label_region(), labels=False)),
-    relations=lidar_relations(),
-    followups=2,
-)
-def test_whole_scene_satisfies_every_relation_on_kitti_sweeps(frame: Frame) -> list[Box]:
-    return WHOLE(frame)
+def test_whole_scene_satisfies_every_relation_on_kitti_sweeps() -> None:
+    @SEARCH
+    @metamorphic(
+        source=st.deferred(lambda: frames(str(KITTI), roi=kitti_label_region(), labels=False)),
+        relations=lidar_relations(),
+        followups=2,
+    )
+    def search(frame: Frame) -> list[Box]:
+        return WHOLE(frame)
+
+    _only_at_the_roi_edge(search)
 
 
-@SEARCH
-@metamorphic(
-    source=mst.scene_frames(),
-    relations=lidar_relations(),
-    followups=2,
-)
-def test_whole_scene_satisfies_every_relation_on_rendered_streets(frame: Frame) -> list[Box]:
-    return WHOLE(frame)
+def test_whole_scene_satisfies_every_relation_on_rendered_streets() -> None:
+    @SEARCH
+    @metamorphic(source=mst.scene_frames(), relations=lidar_relations(), followups=2)
+    def search(frame: Frame) -> list[Box]:
+        return WHOLE(frame)
+
+    _only_at_the_roi_edge(search)
 
 
 @needs_kitti
