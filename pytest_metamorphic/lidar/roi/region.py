@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.lidar.roi.arguments import _finite_float, _non_negative_int, _positive_float
 from pytest_metamorphic.lidar.roi.polygon import (
     _as_xy,
     _points_in_polygon,
@@ -576,28 +577,3 @@ class ROI:
 
     def __repr__(self) -> str:
         return self.describe()
-
-
-def _positive_float(value: Any, name: str) -> float:
-    number = _finite_float(value, name)
-    if number <= 0:
-        raise InvalidArgument(f"{name}={value!r} must be > 0")
-    return number
-
-
-def _finite_float(value: Any, name: str) -> float:
-    if isinstance(value, bool):
-        raise InvalidArgument(f"{name}={value!r} must be a number")
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InvalidArgument(f"{name}={value!r} must be a number") from None
-    if not math.isfinite(number):
-        raise InvalidArgument(f"{name}={value!r} must be finite")
-    return number
-
-
-def _non_negative_int(value: Any, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise InvalidArgument(f"{name}={value!r} must be a non-negative int")
-    return int(value)
