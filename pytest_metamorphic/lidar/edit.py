@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,6 +52,16 @@ def _polar(corners: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[n
     bearing = np.arctan2(corners[:, 1], corners[:, 0])
     bearing = bearing[0] + np.remainder(bearing - bearing[0] + math.pi, 2 * math.pi) - math.pi
     return bearing, np.hypot(corners[:, 0], corners[:, 1])
+
+
+def shadow_overlaps(near: Box, box: Box, *, reach: float = math.inf) -> bool:
+    """Whether ``box`` lies (partly) in ``near``'s shadow as seen from the sensor: within
+    the bearings ``near`` covers (plus one degree) and between its nearest corner and
+    ``reach`` metres."""
+    front, far = _polar(near.corners_bev()), _polar(box.corners_bev())
+    pad = math.radians(1.0)
+    overlap = far[0].min() <= front[0].max() + pad and far[0].max() >= front[0].min() - pad
+    return bool(overlap and far[1].min() <= reach and far[1].max() >= front[1].min())
 
 
 def box_gap(a: Box, b: Box) -> float:
@@ -91,11 +102,7 @@ class RemoveObject:
 
     def region(self) -> Box:
         """The grown box whose returns are removed."""
-        length, width, height = self.box.size
-        return dataclasses.replace(
-            self.box,
-            size=(length + 2 * self.margin, width + 2 * self.margin, height + 2 * self.margin),
-        )
+        return self.box.grown(self.margin)
 
     def ground_height(self, frame: Frame) -> tuple[float, float]:
         """``(z, intensity)``: median height and intensity of the ground around the object."""
@@ -188,14 +195,20 @@ class RemoveObject:
         object covers, from it to where its beams are re-cast (10 m behind it). The ground
         there is new in the follow-up but the lower parts of objects behind it, which a
         sensor would now see too, are not: they are exempt from the relation."""
-        near, far = _polar(self.region().corners_bev()), _polar(box.corners_bev())
-        pad = math.radians(1.0)
-        reach = float(near[1].max()) + _MAX_SHADOW + 2.0
-        overlap = far[0].min() <= near[0].max() + pad and far[0].max() >= near[0].min() - pad
-        return bool(overlap and far[1].min() <= reach and far[1].max() >= near[1].min())
+        region = self.region()
+        reach = float(np.hypot(*region.corners_bev().T).max()) + _MAX_SHADOW + 2.0
+        return shadow_overlaps(region, box, reach=reach)
+
+    def affects(self, box: Box, clearance: float) -> bool:
+        """Whether ``box`` is within ``clearance`` metres of the removed object or in its
+        shadow: the removal may fairly change what is detected there."""
+        return box_gap(box, self.region()) < clearance or self.in_shadow(box)
 
     def params(self) -> dict[str, Any]:
         return {"removed_object": self.box.describe(), "remove_object": self}
+
+    def describe_edit(self) -> str:
+        return f"removed {self.box.describe()}"
 
     def __repr__(self) -> str:
         return f"RemoveObject({self.box.describe()})"
@@ -203,14 +216,17 @@ class RemoveObject:
 
 class OthersKept(Relation):
     """Every judged source obstacle at least ``clearance`` metres (footprint to footprint)
-    from the removed object, and outside its shadow, keeps its own match in the follow-up.
+    from the removed (or inserted, :class:`~pytest_metamorphic.lidar.insert.InsertObject`)
+    object, and outside its shadow, keeps its own match in the follow-up.
 
     Closer obstacles are exempt: the removal changes the ground a detector estimates
     around them (the reference uses returns within 3.5 m) and may split or merge what
     touched the object. So are those in its shadow (:meth:`RemoveObject.in_shadow`): a
     real removal would also reveal their lower parts, which the edit cannot invent (seen
-    on KITTI: a car 6 m behind a removed one, floating over new ground, lost its label).
-    The removed object itself may vanish or stay.
+    on KITTI: a car 6 m behind a removed one, floating over new ground, lost its label),
+    and those an inserted object hides (partly or their ground). The removed object itself
+    may vanish or stay; whether an inserted one is found is
+    :class:`~pytest_metamorphic.lidar.insert.InsertedDetected`'s question.
     """
 
     def __init__(
@@ -224,44 +240,56 @@ class OthersKept(Relation):
         self.matcher = matcher or IoUMatcher()
         self.scope: ObstacleScope = as_scope(scope)
         self.name = (
-            f"others kept (>= {clearance:g} m from the removed object; {self.matcher.name}; "
+            f"others kept (>= {clearance:g} m from the edited object; {self.matcher.name}; "
             f"{self.scope.describe()})"
         )
 
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
-        removal = context.params.get("remove_object", ())
-        if removal is None:  # the source had no object to remove: the follow-up is the source
-            return Verdict(True, self.name, "no object to remove", {"removed": None})
-        if not isinstance(removal, RemoveObject):
-            raise InvalidArgument(
-                f"{self.name} needs the follow-up's RemoveObject in params['remove_object'] "
-                "(use object_removal() or RemoveObject.params())"
-            )
+        edit = _edit(context.params, self.name)
+        if edit is None:  # the source had no object to edit: the follow-up is the source
+            return Verdict(True, self.name, "no object edited", {"edited": None})
         source = [_box(box, "source") for box in source_output]
         found = [_box(box, "follow-up") for box in followup_output]
-        region = removal.region()
+        region = edit.region()
         judged = self.scope.judged(source, context.source_input)
         rows = [
-            i
-            for i, box in enumerate(source)
-            if judged[i] and box_gap(box, region) >= self.clearance and not removal.in_shadow(box)
+            i for i, box in enumerate(source) if judged[i] and not edit.affects(box, self.clearance)
         ]
         compatible, cost = self.matcher.pairwise([source[i] for i in rows], found)
         matched = {rows[r] for r, _ in one_to_one(compatible, cost)}
         lost = [i for i in rows if i not in matched]
         details = {
-            "removed": region.describe(),
+            "edited": region.describe(),
             "judged_far": len(rows),
             "lost": [source[i].describe() for i in lost],
         }
         if not lost:
             return Verdict(True, self.name, details=details)
         lines = [
-            f"{source[i].describe()} ({box_gap(source[i], region):.1f} m from the removed "
-            f"{removal.box.describe()}) has no match"
+            f"{source[i].describe()} ({box_gap(source[i], region):.1f} m from the "
+            f"{edit.describe_edit()}) has no match"
             for i in lost[:10]
         ]
         return Verdict(False, self.name, "; ".join(lines), details)
+
+
+_EDIT_KEYS = ("remove_object", "insert_object")
+_EDIT_API = ("region", "affects", "describe_edit")
+
+
+def _edit(params: Mapping[str, Any], relation: str) -> Any:
+    """The follow-up's object edit (None: the source had no object to edit)."""
+    for key in _EDIT_KEYS:
+        if key in params:
+            edit = params[key]
+            if edit is None or all(callable(getattr(edit, name, None)) for name in _EDIT_API):
+                return edit
+            raise InvalidArgument(f"params[{key!r}]={edit!r} is not an object edit")
+    raise InvalidArgument(
+        f"{relation} needs the follow-up's edit in params['remove_object'] or "
+        "params['insert_object'] (use object_removal(), object_insertion() or the edit's "
+        "params())"
+    )
 
 
 def _box(value: Any, which: str) -> Box:

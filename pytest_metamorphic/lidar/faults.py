@@ -12,7 +12,6 @@ missing rings: a violation reduces to the fewest beams whose loss still fails.
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
@@ -292,7 +291,9 @@ class CoveredObstaclesKept(Relation):
     Still detected: at least ``min_detected`` of those remaining points lie in follow-up
     obstacles (boxes grown by 10 cm; any label and any number of them: fewer points may
     turn a car into an unknown object, and a lost packet may cut one in two). Obstacles
-    labelled ``unknown`` and those the ``scope`` does not judge are skipped.
+    labelled ``unknown`` and those the ``scope`` does not judge are skipped, and with
+    ``range_param`` those whose centre lies farther from the sensor than the follow-up's
+    ``params[range_param]`` metres (e.g. the visibility in fog).
     """
 
     def __init__(
@@ -303,7 +304,11 @@ class CoveredObstaclesKept(Relation):
         min_height_share: float = 0.8,
         min_detected: float = 0.5,
         scope: ScopeLike = "roi",
+        range_param: str | None = None,
     ) -> None:
+        if range_param is not None and not isinstance(range_param, str):
+            raise InvalidArgument(f"range_param={range_param!r} must be a params key or None")
+        self.range_param = range_param
         self.min_points = _count(min_points, "min_points")
         self.min_share = _fraction(min_share, "min_share")
         self.min_height_share = _fraction(min_height_share, "min_height_share")
@@ -316,13 +321,16 @@ class CoveredObstaclesKept(Relation):
         )
 
     def covered(
-        self, boxes: Sequence[Box], source: Frame, followup: Frame
+        self, boxes: Sequence[Box], source: Frame, followup: Frame, reach: float = math.inf
     ) -> list[tuple[int, int, int]]:
-        """``(index, points before, points after)`` of the judged boxes left well covered."""
+        """``(index, points before, points after)`` of the judged boxes left well covered
+        (within ``reach`` metres of the sensor)."""
         judged = self.scope.judged(list(boxes), source)
         chosen = []
         for index, box in enumerate(boxes):
             if not judged[index] or box.label == "unknown":
+                continue
+            if math.hypot(box.center[0], box.center[1]) > reach:
                 continue
             z_before = source.cloud.xyz[box.contains(source.cloud.xyz), 2]
             z_after = followup.cloud.xyz[box.contains(followup.cloud.xyz), 2]
@@ -337,8 +345,11 @@ class CoveredObstaclesKept(Relation):
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         source, followup = _frames(context)
         boxes = _boxes(source_output, "source")
-        found = [_grown(box) for box in _boxes(followup_output, "follow-up")]
-        covered = self.covered(boxes, source, followup)
+        found = [box.grown(0.1) for box in _boxes(followup_output, "follow-up")]
+        reach = math.inf
+        if self.range_param is not None:
+            reach = float(context.params.get(self.range_param, math.inf))
+        covered = self.covered(boxes, source, followup, reach)
         missing = []
         for index, before, after in covered:
             remaining = followup.cloud.xyz[boxes[index].contains(followup.cloud.xyz)]
@@ -361,8 +372,3 @@ class CoveredObstaclesKept(Relation):
             for i, before, after, share in missing
         ]
         return Verdict(False, self.name, "; ".join(lines[:10]), details)
-
-
-def _grown(box: Box, by: float = 0.1) -> Box:
-    length, width, height = box.size
-    return dataclasses.replace(box, size=(length + 2 * by, width + 2 * by, height + 2 * by))

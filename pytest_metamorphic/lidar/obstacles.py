@@ -126,6 +126,19 @@ class Box:
             (x + dx, y + dy, z + dz), self.size, self.yaw, self.label, self.score, self.points
         )
 
+    def grown(self, by: float) -> Box:
+        """The box with ``by`` metres added on every side (length, width and height grow
+        by ``2 * by``)."""
+        length, width, height = self.size
+        return Box(
+            self.center,
+            (length + 2 * by, width + 2 * by, height + 2 * by),
+            self.yaw,
+            self.label,
+            self.score,
+            self.points,
+        )
+
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Which points lie in the box (faces included).
 

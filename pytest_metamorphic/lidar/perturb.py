@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar, runtime_checkable
 
@@ -49,6 +49,7 @@ __all__ = [
     "PermutePoints",
     "Perturbation",
     "RotateAboutSensor",
+    "append_points",
     "seeded_uniforms",
 ]
 
@@ -233,18 +234,29 @@ def _place_points(
     return points
 
 
-def _append_points(cloud: PointCloud, points: NDArray[np.float32]) -> PointCloud:
-    """The cloud with extra points at the end; their fields are 0 (``instance``: -3)."""
+def append_points(
+    cloud: PointCloud,
+    points: NDArray[np.float32],
+    *,
+    instance: int = NOISE_INSTANCE,
+    given: Mapping[str, NDArray[Any]] | None = None,
+) -> PointCloud:
+    """The cloud with extra points at the end.
+
+    Their fields are 0, except ``instance`` (``instance``: -3 for noise) and the fields
+    named in ``given`` (e.g. the ``ring`` of each added return), where the cloud has them.
+    """
     n = len(points)
+    given = given or {}
     fields = {}
     for name, values in cloud.fields.items():
-        fill = (
-            NOISE_INSTANCE
-            if name == "instance" and np.issubdtype(values.dtype, np.signedinteger)
-            else 0
-        )
-        fields[name] = np.full((n, *values.shape[1:]), fill, dtype=values.dtype)
-    extra = PointCloud(points, fields=fields, frame_id=cloud.frame_id, name="injected points")
+        shape, dtype = (n, *values.shape[1:]), values.dtype
+        if name in given:
+            fields[name] = np.asarray(given[name]).astype(dtype).reshape(shape)
+            continue
+        fill = instance if name == "instance" and np.issubdtype(dtype, np.signedinteger) else 0
+        fields[name] = np.full(shape, fill, dtype=dtype)
+    extra = PointCloud(points, fields=fields, frame_id=cloud.frame_id, name="added points")
     return PointCloud.concatenate([cloud, extra])
 
 
@@ -292,7 +304,7 @@ class _InjectedPoints:
         """The frame with the points appended (ROI, boxes, pose and origin kept)."""
         if not isinstance(frame, Frame):
             raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
-        return frame.with_cloud(_append_points(frame.cloud, self.points))
+        return frame.with_cloud(append_points(frame.cloud, self.points))
 
     def params(self) -> dict[str, Any]:
         return {"n": len(self), self.kind: self}

@@ -25,6 +25,10 @@ turned_output_frame         boxes reported in a frame turned 2 degrees about the
                             wrong yaw extrinsic applied to the detections)
 dense_min_points            objects need 40 points (a minimum cluster size tuned on a dense
                             64-beam sweep)
+nearest_object_list         only the 20 nearest obstacles reported (a fixed-length object
+                            list, as ADAS sensors send over CAN)
+intensity_floor             returns weaker than intensity 0.05 dropped as speckle (a filter
+                            tuned in clear weather)
 ==========================  =================================================================
 """
 
@@ -290,6 +294,43 @@ class TurnedOutputFrame(ReferencePerception):
         return [box.rotated(theta) for box in super().build_boxes(points, ground_z, clusters)]
 
 
+class NearestObjectList(ReferencePerception):
+    """Only the ``slots`` nearest obstacles are reported.
+
+    ADAS sensors and perception ECUs send a fixed-length object list (a CAN message per
+    slot); the software behind them drops what does not fit, nearest first. In a busy
+    street a car that enters the view pushes a farther, unchanged obstacle off the list:
+    no noise, reordering, rotation or removal shows it (nothing new appears), an inserted
+    object does.
+    """
+
+    name = "nearest_object_list"
+    slots = 20
+
+    def build_boxes(
+        self, points: NDArray[np.float32], ground_z: NDArray[np.float32], clusters: Clusters
+    ) -> list[Box]:
+        boxes = super().build_boxes(points, ground_z, clusters)
+        return sorted(boxes, key=lambda box: math.hypot(*box.center[:2]))[: self.slots]
+
+
+class IntensityFloor(ReferencePerception):
+    """Returns with intensity below ``floor`` are dropped before anything else.
+
+    A speckle filter tuned on clear-weather sweeps, where dark returns at this level are
+    mostly noise. Fog and rain scale every return's intensity down with range: a car
+    20 m away whose returns all still arrive drops below the floor and is lost. Geometric
+    relations never change intensities, so only weather shows it.
+    """
+
+    name = "intensity_floor"
+    floor = 0.05
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        scale = 255.0 if len(points) and float(points[:, 3].max()) > 1.0 else 1.0
+        return points[points[:, 3] >= self.floor * scale]
+
+
 def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
     """(n,) int64: one key per voxel of edge ``size`` (cells packed into one integer)."""
     cells = np.floor(coordinates / np.float32(size)).astype(np.int64)
@@ -317,6 +358,8 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         RawPointCount,
         TurnedOutputFrame,
         DenseMinPoints,
+        NearestObjectList,
+        IntensityFloor,
     )
 }
 

@@ -19,6 +19,7 @@ relation                         follow-up                            expected o
 :func:`beam_loss`                1-4 lasers return nothing            well-covered O kept
 :func:`packet_loss`              1-10 packets (azimuth blocks) lost   well-covered O kept
 :func:`object_removal`           one car/pedestrian/cyclist removed   the others kept
+:func:`object_insertion`         a real object put on free ground     it is found, others kept
 ===============================  ===================================  ======================
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
@@ -67,7 +68,12 @@ from pytest_metamorphic.relations.lidar.noise import (
     outside_noise_invariance,
     outside_removal,
 )
-from pytest_metamorphic.relations.lidar.objects import object_removal, removal_candidates
+from pytest_metamorphic.relations.lidar.objects import (
+    object_insertion,
+    object_removal,
+    object_templates,
+    removal_candidates,
+)
 
 __all__ = [
     "DEFAULT_NOISE",
@@ -85,7 +91,9 @@ __all__ = [
     "mirror_symmetry",
     "mr1_cardinality",
     "mr1_subset",
+    "object_insertion",
     "object_removal",
+    "object_templates",
     "outside_noise_invariance",
     "outside_removal",
     "packet_loss",
@@ -120,4 +128,5 @@ def lidar_relations(
         beam_loss(scope=scope),
         packet_loss(scope=scope),
         object_removal(scope=scope),
+        object_insertion(scope=scope),
     ]

@@ -1,21 +1,32 @@
-"""Relations under object edits: an object taken out of the sweep."""
+"""Relations under object edits: an object taken out of the sweep, or put into it."""
 
 from __future__ import annotations
 
+import weakref
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
+from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
 from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject
 from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.insert import (
+    InsertedDetected,
+    InsertObject,
+    ObjectTemplate,
+    Placement,
+    free_placements,
+)
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
 from pytest_metamorphic.relations.lidar._common import _frame
 
-__all__ = ["object_removal", "removal_candidates"]
+__all__ = ["object_insertion", "object_removal", "object_templates", "removal_candidates"]
 
 _PROPOSER = ReferencePerception()
 _CLASSES = ("car", "pedestrian", "cyclist")
@@ -69,5 +80,105 @@ def object_removal(
             return Followup(removal.apply(frame), params=removal.params())
 
         return st.integers(0, len(objects) - 1).map(remove)
+
+    return MetamorphicRelation(name, followup, relation)
+
+
+def object_templates(
+    frames: Frame | Iterable[Frame], *, min_returns: int = 30, scope: ScopeLike = "all"
+) -> list[ObjectTemplate]:
+    """Objects to insert, taken from ``frames``: every car, pedestrian and cyclist
+    (labelled boxes when a frame has them, else the reference pipeline's detections; see
+    :func:`removal_candidates`) with at least ``min_returns`` returns, nearest first
+    within each frame. ``scope`` picks which of them are taken (default: all)."""
+    if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
+        raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
+    chosen = [frames] if isinstance(frames, Frame) else list(frames)
+    templates = []
+    for index, frame in enumerate(chosen):
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frames[{index}] is {frame!r}, not a Frame")
+        for box in removal_candidates(frame, scope=scope):
+            if RemoveObject(box).removed(frame).sum() < min_returns:
+                continue
+            try:
+                templates.append(ObjectTemplate.from_frame(frame, box))
+            except InvalidArgument:  # returns that do not form a surface (a thin pole)
+                continue
+    return templates
+
+
+def object_insertion(
+    *,
+    objects: Sequence[ObjectTemplate] | None = None,
+    clearance: float = 5.0,
+    min_points: int = 30,
+    min_detected: float = 0.5,
+    matcher: Matcher | None = None,
+    layout: BeamLayout = HDL64E,
+    scope: ScopeLike = "roi",
+    name: str = "an object inserted => it is detected and the others kept",
+) -> MetamorphicRelation:
+    """A real object put on free ground in the ROI is detected, and nothing else is lost
+    (semLidarFuzz's add, MultiTest's insertion).
+
+    The follow-up takes one of ``objects`` (:func:`object_templates`, e.g. from labelled
+    KITTI sweeps or a rendered scene; default: the source frame's own cars, pedestrians
+    and cyclists) and places it with
+    :class:`~pytest_metamorphic.lidar.insert.InsertObject`: on free ground judged by
+    ``scope`` and in clear view (:func:`~pytest_metamorphic.lidar.insert.free_placements`),
+    re-projected onto ``layout``'s beams, hiding what it stands in front of. Shrinking goes
+    toward the first object and the smallest move from where it was seen; a violation
+    reduces to the fewest inserted returns that still fail.
+
+    The check is :class:`~pytest_metamorphic.lidar.insert.InsertedDetected` (an inserted
+    object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
+    obstacles, any label) and :class:`~pytest_metamorphic.lidar.edit.OthersKept` (judged
+    source obstacles >= ``clearance`` metres from it and not behind it keep their match).
+
+    Precondition: a detector that finds an unoccluded object of >= 30 returns on free
+    ground, and whose decisions about one object do not depend on objects farther away
+    than ``clearance``. Holds for the reference and the whole-scene detector on all six
+    KITTI sweeps and a rendered street (tests).
+    """
+    check = InsertedDetected(min_points=min_points, min_detected=min_detected, scope=scope)
+    relation = check & OthersKept(clearance=clearance, matcher=matcher, scope=scope)
+    if not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
+    if objects is not None:
+        objects = list(objects)
+        for index, template in enumerate(objects):
+            if not isinstance(template, ObjectTemplate):
+                raise InvalidArgument(f"objects[{index}] is {template!r}, not an ObjectTemplate")
+        if not objects:
+            raise InvalidArgument("objects is empty: pass None to take the source's own")
+    # Placements per source frame (the search reads the whole cloud once).
+    options: weakref.WeakKeyDictionary[Frame, list[tuple[ObjectTemplate, list[Placement]]]]
+    options = weakref.WeakKeyDictionary()
+
+    def where(frame: Frame) -> list[tuple[ObjectTemplate, list[Placement]]]:
+        if frame not in options:
+            templates = objects
+            if templates is None:
+                templates = object_templates(frame, min_returns=min_points, scope=scope)
+            found = [(t, free_placements(frame, t, scope=scope, layout=layout)) for t in templates]
+            options[frame] = [(t, places) for t, places in found if places]
+        return options[frame]
+
+    def followup(frame: Any) -> st.SearchStrategy[Followup]:
+        frame = _frame(frame)
+        choices = where(frame)
+        if not choices:
+            return st.just(Followup(frame, params={"insert_object": None}))
+
+        def insert(template: ObjectTemplate, placement: Placement) -> Followup:
+            insertion = InsertObject.onto(frame, template, placement, layout=layout)
+            return Followup(insertion.apply(frame), params=insertion.params())
+
+        def place(index: int) -> st.SearchStrategy[Followup]:
+            template, places = choices[index]
+            return st.sampled_from(places).map(lambda placement: insert(template, placement))
+
+        return st.integers(0, len(choices) - 1).flatmap(place)
 
     return MetamorphicRelation(name, followup, relation)
