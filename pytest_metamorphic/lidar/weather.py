@@ -9,8 +9,9 @@ to what a recorded sweep lets us compute:
   Its intensity is scaled by the same factor. It is still detected while
   ``ρ exp(-2 α r) / r² >= τ``, with ``τ`` set by the HDL-64E's specification (a 10 %
   reflective target is seen to 50 m) and ``ρ`` the return's intensity read as reflectance
-  (0-1; 0-255 scales are divided by 255), but never less than what it needed to be seen
-  in clear air (every recorded return *was* detected).
+  (0-1; 0-255 scales are divided by 255), but never less than twice what it needed to be
+  seen in clear air: every recorded return *was* detected, and a return recorded with
+  intensity 0 (a tenth of a KITTI sweep) is taken to have had a 3 dB margin, not none.
 * **Droplet echoes** (backscatter): along each beam the first droplet lies at an
   exponentially distributed range (mean ``1 / α``); with probability ``scatter`` (fog:
   0.1, rain: 0.02; rain drops are larger and fewer) it reflects enough to be reported
@@ -42,6 +43,7 @@ SCATTER: dict[str, float] = {"fog": 0.1, "rain": 0.02}
 """Default share of beams whose first droplet echo is strong enough to be reported."""
 
 _THRESHOLD = 0.10 / 50.0**2  # reflectance / range² at the detection limit (HDL-64E spec)
+_CLEAR_AIR_MARGIN = 2.0  # the least a recorded return is assumed to exceed the threshold by
 _DROPLET_REFLECTANCE = 0.02
 _DROPLET_RANGE = math.sqrt(_DROPLET_REFLECTANCE / _THRESHOLD)  # about 22 m
 _MIN_RANGE = 0.9  # metres: nearer echoes are blocked by the housing (see BeamLayout)
@@ -108,7 +110,8 @@ class Weather:
         xyz = frame.cloud.xyz.astype(np.float64)
         intensity = frame.cloud.intensity
         ranges = np.linalg.norm(xyz, axis=1)
-        reflectance = np.maximum(intensity / _intensity_scale(frame), _THRESHOLD * ranges**2)
+        floor = _CLEAR_AIR_MARGIN * _THRESHOLD * ranges**2
+        reflectance = np.maximum(intensity / _intensity_scale(frame), floor)
         transmitted = np.exp(-2.0 * self.alpha * ranges)
         lost = reflectance * transmitted < _THRESHOLD * ranges**2
         rng = np.random.default_rng([self.seed, len(xyz)])

@@ -20,6 +20,7 @@ relation                         follow-up                            expected o
 :func:`packet_loss`              1-10 packets (azimuth blocks) lost   well-covered O kept
 :func:`object_removal`           one car/pedestrian/cyclist removed   the others kept
 :func:`object_insertion`         a real object put on free ground     it is found, others kept
+:func:`adverse_weather`          fog or rain of 200/100/50 m          well-covered O kept
 ===============================  ===================================  ======================
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
@@ -74,9 +75,11 @@ from pytest_metamorphic.relations.lidar.objects import (
     object_templates,
     removal_candidates,
 )
+from pytest_metamorphic.relations.lidar.weather import DEFAULT_VISIBILITIES, adverse_weather
 
 __all__ = [
     "DEFAULT_NOISE",
+    "DEFAULT_VISIBILITIES",
     "PACKET_DEGREES",
     "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
@@ -85,6 +88,7 @@ __all__ = [
     "MovedObstacles",
     "ObstacleScope",
     "RotatedObstacles",
+    "adverse_weather",
     "beam_loss",
     "duplication_invariance",
     "lidar_relations",
@@ -129,4 +133,5 @@ def lidar_relations(
         packet_loss(scope=scope),
         object_removal(scope=scope),
         object_insertion(scope=scope),
+        adverse_weather(scope=scope),
     ]
