@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from pytest_metamorphic.core.campaign import campaign_test
-from pytest_metamorphic.lidar.campaign import fault_campaign, mr1_campaign
+from pytest_metamorphic.lidar.campaign import edit_campaign, fault_campaign, mr1_campaign
 from pytest_metamorphic.lidar.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
@@ -89,6 +89,23 @@ test_kitti_dead_beams_dense_min_points = campaign_test(
     fault_campaign(
         dense_system, fault="beam_loss", name="dead beams KITTI mutant dense_min_points",
         frames=frames, followups=10,
+    ),
+    shards=len(frames),
+)  # fmt: skip
+
+# Weather and object edits as campaigns: the reference keeps every well-covered obstacle
+# within the visibility in fog of 400 to 50 m, and finds every object put back into its
+# own sweep nearer or farther (80-150 % of the range it was seen at) without losing others.
+test_kitti_fog_reference = campaign_test(
+    fault_campaign(
+        reference_system, fault="fog", name="fog KITTI reference", frames=frames, followups=10,
+    ),
+    shards=len(frames),
+)  # fmt: skip
+test_kitti_insertion_reference = campaign_test(
+    edit_campaign(
+        reference_system, edit="insertion", name="insertion KITTI reference", frames=frames,
+        followups=10,
     ),
     shards=len(frames),
 )  # fmt: skip

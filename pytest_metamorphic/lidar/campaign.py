@@ -23,6 +23,7 @@ and run ``pytest --mt-campaign``.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -34,6 +35,8 @@ from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
+from pytest_metamorphic.core.relations import Relation
+from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject, removal_candidates
 from pytest_metamorphic.lidar.faults import (
     PACKET_DEGREES,
     CoveredObstaclesKept,
@@ -42,22 +45,36 @@ from pytest_metamorphic.lidar.faults import (
 )
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.insert import (
+    InsertedDetected,
+    InsertObject,
+    ObjectTemplate,
+    free_placements,
+    object_templates,
+)
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.layout import random_scene
 from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
-from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
+from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, SEED_BITS, NoiseOutsideROI
 from pytest_metamorphic.lidar.scene import render
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope, obstacles_kept
+from pytest_metamorphic.lidar.weather import Weather
 
 __all__ = [
+    "EDIT_SEVERITIES",
     "FAULT_SEVERITIES",
     "box_label",
     "dead_beams_followup",
+    "edit_campaign",
     "fault_campaign",
+    "fog_followup",
+    "insertion_followup",
     "lost_packets_followup",
     "mr1_campaign",
     "noise_followup",
+    "rain_followup",
     "recorded_frames",
+    "removal_followup",
     "synthetic_frames",
 ]
 
@@ -226,9 +243,18 @@ def _frame_source(frames: Any, sources: int | None) -> tuple[SourceFn, int]:
 #: Default severities: dead lasers (of 64), lost packets (of 1.04 degrees each). The
 #: relation holds for the reference pipeline up to 8 dead lasers on the KITTI sweeps; with
 #: 16 it loses 1 well-covered obstacle in 24 follow-ups (beyond the relation's validity).
+#: Fog and rain: the visibility in metres (smaller is worse).
 FAULT_SEVERITIES: dict[str, tuple[int, ...]] = {
     "beam_loss": (1, 2, 4, 8),
     "packet_loss": (1, 5, 10, 20, 40),
+    "fog": (400, 200, 100, 50),
+    "rain": (400, 200, 100, 50),
+}
+_SEVERITY_LIMITS = {
+    "beam_loss": HDL64E.lasers,
+    "packet_loss": int(360 / PACKET_DEGREES),
+    "fog": 100_000,
+    "rain": 100_000,
 }
 
 
@@ -246,13 +272,30 @@ def lost_packets_followup(frame: Frame, severity: int, rng: np.random.Generator)
     return Followup(fault.apply(frame), params={**fault.params(), "packets": severity})
 
 
-_FAULT_FOLLOWUPS = {"beam_loss": dead_beams_followup, "packet_loss": lost_packets_followup}
+def fog_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """Fog of ``severity`` metres visibility (see :mod:`pytest_metamorphic.lidar.weather`)."""
+    weather = Weather(float(severity), "fog", int(rng.integers(2**SEED_BITS)))
+    return Followup(weather.apply(frame), params=weather.params())
+
+
+def rain_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """Rain of ``severity`` metres visibility."""
+    weather = Weather(float(severity), "rain", int(rng.integers(2**SEED_BITS)))
+    return Followup(weather.apply(frame), params=weather.params())
+
+
+_FAULT_FOLLOWUPS = {
+    "beam_loss": dead_beams_followup,
+    "packet_loss": lost_packets_followup,
+    "fog": fog_followup,
+    "rain": rain_followup,
+}
 
 
 def fault_campaign(
     system: Callable[[Frame], Sequence[Box]],
     *,
-    fault: Literal["beam_loss", "packet_loss"],
+    fault: Literal["beam_loss", "packet_loss", "fog", "rain"],
     name: str,
     frames: SourceFn | FrameCatalog | str | os.PathLike[str] | None = None,
     sources: int | None = None,
@@ -272,9 +315,10 @@ def fault_campaign(
     Parameters
     ----------
     system : callable(Frame) -> sequence of Box
-    fault : {"beam_loss", "packet_loss"}
-        Dead lasers (severity: how many of the 64) or lost packets (severity: how many
-        consecutive 1.04-degree blocks).
+    fault : {"beam_loss", "packet_loss", "fog", "rain"}
+        Dead lasers (severity: how many of the 64), lost packets (severity: how many
+        consecutive 1.04-degree blocks), or fog and rain (severity: the visibility in
+        metres; obstacles farther than it are not judged).
     name, frames, sources, followups, seed, scope
         As for :func:`mr1_campaign`.
     severities : sequence of int, optional
@@ -288,7 +332,7 @@ def fault_campaign(
     chosen = as_scope(scope)
     _check_system(system)
     levels = tuple(FAULT_SEVERITIES[fault] if severities is None else severities)
-    limit = HDL64E.lasers if fault == "beam_loss" else int(360 / PACKET_DEGREES)
+    limit = _SEVERITY_LIMITS[fault]
     if not levels or not all(
         isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= limit for v in levels
     ):
@@ -305,6 +349,7 @@ def fault_campaign(
             min_height_share=min_height_share,
             min_detected=min_detected,
             scope=chosen,
+            range_param="visibility_m" if fault in ("fog", "rain") else None,
         ),
         sizes=levels,
         sources=sources,
@@ -325,3 +370,111 @@ class _Judged:
         for box in boxes:
             box_label(box)  # names a non-Box item the way the campaign's own check does
         return self.scope.select(boxes, frame)
+
+
+# -- object edits: insertion and removal as campaigns ------------------------------------------
+
+#: Default severities: insertion at this percentage of the range the object was seen at
+#: (nearer, the same, farther); removal of the k-th nearest object.
+EDIT_SEVERITIES: dict[str, tuple[int, ...]] = {
+    "insertion": (80, 100, 125, 150),
+    "removal": (1, 2, 3, 4),
+}
+
+
+@functools.lru_cache(maxsize=4)
+def _templates(frame: Frame) -> tuple[ObjectTemplate, ...]:
+    return tuple(object_templates(frame))
+
+
+def insertion_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """One of the frame's own cars, pedestrians or cyclists inserted again, at
+    ``severity`` percent of the range it was seen at, at a random free place (none
+    edited when there is no such place)."""
+    factor = severity / 100.0
+    places = [
+        (template, placement)
+        for template in _templates(frame)
+        for placement in free_placements(frame, template, limit=8, factors=(factor,))
+    ]
+    if not places:
+        return Followup(frame, params={"insert_object": None})
+    template, placement = places[int(rng.integers(len(places)))]
+    insertion = InsertObject.onto(frame, template, placement)
+    return Followup(insertion.apply(frame), params=insertion.params())
+
+
+def removal_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """The ``severity``-th nearest car, pedestrian or cyclist removed (none when the frame
+    has fewer)."""
+    candidates = removal_candidates(frame)
+    if len(candidates) < severity:
+        return Followup(frame, params={"remove_object": None})
+    removal = RemoveObject(candidates[severity - 1])
+    return Followup(removal.apply(frame), params=removal.params())
+
+
+_EDIT_FOLLOWUPS = {"insertion": insertion_followup, "removal": removal_followup}
+
+
+def edit_campaign(
+    system: Callable[[Frame], Sequence[Box]],
+    *,
+    edit: Literal["insertion", "removal"],
+    name: str,
+    frames: SourceFn | FrameCatalog | str | os.PathLike[str] | None = None,
+    sources: int | None = None,
+    severities: Sequence[int] | None = None,
+    followups: int = 1,
+    seed: int = 0,
+    clearance: float = 5.0,
+    min_points: int = 30,
+    min_detected: float = 0.5,
+    matcher: Matcher | None = None,
+    scope: ScopeLike = "roi",
+) -> Campaign:
+    """Object insertion or removal as a campaign: violation rates per severity, with
+    Wilson intervals.
+
+    Parameters
+    ----------
+    system : callable(Frame) -> sequence of Box
+    edit : {"insertion", "removal"}
+        Insertion (severity: the range, in percent of the range the object was seen at;
+        checked with :class:`~pytest_metamorphic.lidar.insert.InsertedDetected` and
+        :class:`~pytest_metamorphic.lidar.edit.OthersKept`) or removal (severity: which
+        object, nearest first; checked with ``OthersKept``). A follow-up that finds no
+        place or no object edits nothing and holds.
+    name, frames, sources, followups, seed, scope
+        As for :func:`mr1_campaign`.
+    clearance, min_points, min_detected, matcher
+        As for :func:`~pytest_metamorphic.relations.lidar.object_insertion`.
+    """
+    if edit not in _EDIT_FOLLOWUPS:
+        raise InvalidArgument(f"edit={edit!r} must be one of {sorted(_EDIT_FOLLOWUPS)}")
+    chosen = as_scope(scope)
+    _check_system(system)
+    levels = tuple(EDIT_SEVERITIES[edit] if severities is None else severities)
+    if not levels or not all(
+        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 1000 for v in levels
+    ):
+        raise InvalidArgument(f"severities={severities!r} must be ints in [1, 1000]")
+    kept = OthersKept(clearance=clearance, matcher=matcher, scope=chosen)
+    relation: Relation = kept
+    if edit == "insertion":
+        found = InsertedDetected(min_points=min_points, min_detected=min_detected, scope=chosen)
+        relation = found & kept
+    source, sources = _frame_source(frames, sources)
+    return Campaign(
+        name=name,
+        source=source,
+        followup=_EDIT_FOLLOWUPS[edit],
+        system=system,
+        relation=relation,
+        sizes=levels,
+        sources=sources,
+        followups=followups,
+        seed=seed,
+        category=box_label,
+        counted=None if chosen.everything else _Judged(chosen),
+    )

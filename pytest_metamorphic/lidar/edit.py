@@ -33,9 +33,10 @@ from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.minimize import footprint_distances
 from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
-__all__ = ["OthersKept", "RemoveObject", "box_gap"]
+__all__ = ["OthersKept", "RemoveObject", "box_gap", "removal_candidates", "shadow_overlaps"]
 
 _GROUND_RING = (0.5, 4.0)  # metres around the footprint where the ground is sampled
 _GROUND_BAND = 0.3  # metres above the box bottom still counted as ground
@@ -45,6 +46,20 @@ _MAX_RANGE = 120.0  # HDL-64E
 _BEAM_WIDTH = math.radians(0.3)
 _MAX_SHADOW = 10.0  # metres behind the object that beams are re-cast to
 _GROUND_LOOKUP = 1.5  # metres around a landing spot where the local ground is read
+_CLASSES = ("car", "pedestrian", "cyclist")
+_PROPOSER = ReferencePerception()  # proposes the objects of an unlabelled frame
+
+
+def removal_candidates(frame: Frame, *, scope: ScopeLike = "roi") -> list[Box]:
+    """Objects a follow-up may remove, nearest first: the frame's labelled boxes (ground
+    truth) when it has any, else what the reference pipeline finds; cars, pedestrians and
+    cyclists that ``scope`` judges."""
+    chosen = as_scope(scope)
+    boxes = list(frame.boxes) or _PROPOSER(frame)
+    boxes = [box for box in boxes if box.label in _CLASSES]
+    judged = chosen.judged(boxes, frame)
+    inside = [box for box, keep in zip(boxes, judged, strict=True) if keep]
+    return sorted(inside, key=lambda box: (box.center[0] ** 2 + box.center[1] ** 2, box.center))
 
 
 def _polar(corners: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

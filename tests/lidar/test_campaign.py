@@ -10,7 +10,9 @@ from pytest_metamorphic.core.campaign import merge_results, run_campaign
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.campaign import (
+    EDIT_SEVERITIES,
     FAULT_SEVERITIES,
+    edit_campaign,
     fault_campaign,
     mr1_campaign,
     noise_followup,
@@ -135,6 +137,49 @@ def test_fault_campaigns_give_robustness_curves_per_relation() -> None:
     curve = [counts.violations for _, counts in sorted(run_campaign(dense).sizes.items())]
     assert curve[-1] > curve[0] and sum(curve) > 0
     with pytest.raises(InvalidArgument, match="fault"):
-        fault_campaign(reference_system, fault="rain", name="x", frames=catalog)  # type: ignore[arg-type]
+        fault_campaign(reference_system, fault="snow", name="x", frames=catalog)  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="severities"):
         fault_campaign(reference_system, fault="beam_loss", name="x", severities=(65,))
+
+
+def test_weather_campaigns_give_a_curve_over_the_visibility() -> None:
+    """Fog over the KITTI sweeps: the reference keeps every well-covered obstacle within
+    the visibility at 400 to 50 m. Rain over rendered streets: a clear-weather speckle
+    filter loses more the heavier the rain."""
+    catalog = FrameCatalog(
+        shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    )
+    result = run_campaign(
+        fault_campaign(reference_system, fault="fog", name="fog", frames=catalog, followups=1)
+    )
+    assert sorted(result.sizes) == sorted(FAULT_SEVERITIES["fog"])
+    assert all(c.pairs == 6 and c.violations == 0 for c in result.sizes.values())
+    speckle = fault_campaign(
+        system_of("intensity_floor"), fault="rain", name="speckle", sources=6,
+        severities=(400, 50), followups=2,
+    )  # fmt: skip
+    curve = run_campaign(speckle).sizes
+    assert curve[50].violations > curve[400].violations
+
+
+def test_edit_campaigns_rate_insertion_per_range_and_removal_per_object() -> None:
+    """Insertion and removal over the KITTI sweeps: the reference holds at every severity;
+    a fixed-length object list loses obstacles when objects are inserted."""
+    catalog = FrameCatalog(
+        shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    )
+    for edit in ("insertion", "removal"):
+        result = run_campaign(
+            edit_campaign(reference_system, edit=edit, name=edit, frames=catalog, followups=1)
+        )
+        assert sorted(result.sizes) == sorted(EDIT_SEVERITIES[edit])
+        assert all(c.pairs == 6 and c.violations == 0 for c in result.sizes.values())
+    listed = edit_campaign(
+        system_of("nearest_object_list"), edit="insertion", name="list", frames=catalog,
+        severities=(100,), followups=2,
+    )  # fmt: skip
+    assert run_campaign(listed).sizes[100].violations > 0
+    with pytest.raises(InvalidArgument, match="edit="):
+        edit_campaign(reference_system, edit="scale", name="x")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="severities"):
+        edit_campaign(reference_system, edit="removal", name="x", severities=(0,))

@@ -79,9 +79,10 @@ def test_inserted_returns_match_what_the_renderer_sees_of_the_same_car_there() -
     after = insertion.apply(empty)
     assert set(after.cloud.fields["ring"][-count:]) <= set(range(64))
     assert (after.cloud.fields["instance"][-count:] == INSERTED_INSTANCE).all()
-    assert after.boxes[-1] == there and len(after.cloud) == len(empty.cloud) - len(
-        insertion.hidden
-    ) + count
+    assert (
+        after.boxes[-1] == there
+        and len(after.cloud) == len(empty.cloud) - len(insertion.hidden) + count
+    )
 
 
 def test_farther_means_fewer_returns_and_nothing_behind_an_inserted_car_stays_visible() -> None:

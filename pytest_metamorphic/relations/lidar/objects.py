@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import weakref
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 from hypothesis import strategies as st
@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
-from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject
+from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject, removal_candidates
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.insert import (
@@ -20,28 +20,13 @@ from pytest_metamorphic.lidar.insert import (
     ObjectTemplate,
     Placement,
     free_placements,
+    object_templates,
 )
 from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception import ReferencePerception
-from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.scope import ScopeLike
 from pytest_metamorphic.relations.lidar._common import _frame
 
 __all__ = ["object_insertion", "object_removal", "object_templates", "removal_candidates"]
-
-_PROPOSER = ReferencePerception()
-_CLASSES = ("car", "pedestrian", "cyclist")
-
-
-def removal_candidates(frame: Frame, *, scope: ScopeLike = "roi") -> list[Box]:
-    """Objects a follow-up may remove, nearest first: the frame's labelled boxes (ground
-    truth) when it has any, else what the reference pipeline finds; cars, pedestrians and
-    cyclists that ``scope`` judges."""
-    chosen = as_scope(scope)
-    boxes = list(frame.boxes) or _PROPOSER(frame)
-    boxes = [box for box in boxes if box.label in _CLASSES]
-    judged = chosen.judged(boxes, frame)
-    inside = [box for box, keep in zip(boxes, judged, strict=True) if keep]
-    return sorted(inside, key=lambda box: (box.center[0] ** 2 + box.center[1] ** 2, box.center))
 
 
 def object_removal(
@@ -82,30 +67,6 @@ def object_removal(
         return st.integers(0, len(objects) - 1).map(remove)
 
     return MetamorphicRelation(name, followup, relation)
-
-
-def object_templates(
-    frames: Frame | Iterable[Frame], *, min_returns: int = 30, scope: ScopeLike = "all"
-) -> list[ObjectTemplate]:
-    """Objects to insert, taken from ``frames``: every car, pedestrian and cyclist
-    (labelled boxes when a frame has them, else the reference pipeline's detections; see
-    :func:`removal_candidates`) with at least ``min_returns`` returns, nearest first
-    within each frame. ``scope`` picks which of them are taken (default: all)."""
-    if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
-        raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
-    chosen = [frames] if isinstance(frames, Frame) else list(frames)
-    templates = []
-    for index, frame in enumerate(chosen):
-        if not isinstance(frame, Frame):
-            raise InvalidArgument(f"frames[{index}] is {frame!r}, not a Frame")
-        for box in removal_candidates(frame, scope=scope):
-            if RemoveObject(box).removed(frame).sum() < min_returns:
-                continue
-            try:
-                templates.append(ObjectTemplate.from_frame(frame, box))
-            except InvalidArgument:  # returns that do not form a surface (a thin pole)
-                continue
-    return templates
 
 
 def object_insertion(
