@@ -26,6 +26,11 @@ _LAZY: dict[str, str] = {
     "noise_outside_roi": "_noise",
     "permuted_points": "_noise",
     "rotated_frames": "_noise",
+    "dead_beams": "_faults",
+    "lost_packets": "_faults",
+    "weathered_frames": "_faults",
+    "inserted_objects": "_edits",
+    "removed_objects": "_edits",
     "aeb_scenarios": "_driving",
     "ego_speed_changes": "_driving",
     "straight_roads": "_driving",
@@ -33,14 +38,18 @@ _LAZY: dict[str, str] = {
 
 __all__ = [
     "aeb_scenarios",
+    "dead_beams",
     "dropped_points",
     "duplicated_points",
     "ego_speed_changes",
     "frames",
+    "inserted_objects",
     "junctions",
+    "lost_packets",
     "noise_inside_roi",
     "noise_outside_roi",
     "permuted_points",
+    "removed_objects",
     "road_corridors",
     "rois",
     "rotated_frames",
@@ -48,6 +57,7 @@ __all__ = [
     "scenes",
     "simple_polygons",
     "straight_roads",
+    "weathered_frames",
 ]
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -56,6 +66,8 @@ if TYPE_CHECKING:  # pragma: no cover
         ego_speed_changes,
         straight_roads,
     )
+    from pytest_metamorphic.strategies._edits import inserted_objects, removed_objects
+    from pytest_metamorphic.strategies._faults import dead_beams, lost_packets, weathered_frames
     from pytest_metamorphic.strategies._frames import frames
     from pytest_metamorphic.strategies._noise import (
         dropped_points,

@@ -3,7 +3,6 @@ detected."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from hypothesis import strategies as st
@@ -13,13 +12,11 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.faults import (
     PACKET_DEGREES,
     CoveredObstaclesKept,
-    DropAzimuthBlock,
-    DropRings,
-    derive_rings,
 )
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.scope import ScopeLike
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
+from pytest_metamorphic.strategies._faults import dead_beams, lost_packets
 
 __all__ = ["PACKET_DEGREES", "CoveredObstaclesKept", "beam_loss", "packet_loss"]
 
@@ -38,7 +35,7 @@ def beam_loss(
     """Lasers that return nothing (dead channels) lose no obstacle they leave well covered.
 
     The follow-up drops every return of 1 to ``max_rings`` lasers
-    (:class:`~pytest_metamorphic.lidar.faults.DropRings`; rings from the cloud's ``ring``
+    (:func:`~pytest_metamorphic.strategies.dead_beams`; rings from the cloud's ``ring``
     field, a KITTI sweep's storage order, or ``layout``'s elevations; shrinking toward
     fewer and lower rings). A violation reduces to the fewest dead beams that still lose
     the obstacle. The check is :class:`CoveredObstaclesKept`.
@@ -62,20 +59,9 @@ def beam_loss(
         min_detected=min_detected,
         scope=scope,
     )
-    rings = st.lists(
-        st.integers(0, layout.lasers - 1), min_size=1, max_size=min(max_rings, layout.lasers),
-        unique=True,
-    )  # fmt: skip
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
-        frame = _frame(frame)
-        derive_rings(frame.cloud, layout=layout)  # a cloud whose rings cannot be found: now
-
-        def drop(chosen: list[int]) -> Followup:
-            fault = DropRings(tuple(chosen), layout)
-            return Followup(fault.apply(frame), params=fault.params())
-
-        return rings.map(drop)
+        return dead_beams(_frame(frame), max_rings=max_rings, layout=layout)
 
     return MetamorphicRelation(name, followup, relation)
 
@@ -92,8 +78,9 @@ def packet_loss(
 ) -> MetamorphicRelation:
     """Lost packets (an azimuth block of every laser) lose no obstacle they leave well
     covered. The follow-up removes 1 to ``max_packets`` consecutive packets
-    (:data:`PACKET_DEGREES` each) starting at a drawn azimuth (tenths of a degree,
-    shrinking toward straight ahead). The check is :class:`CoveredObstaclesKept`.
+    (:data:`PACKET_DEGREES` each) starting at a drawn azimuth
+    (:func:`~pytest_metamorphic.strategies.lost_packets`). The check is
+    :class:`CoveredObstaclesKept`.
     """
     _check_size(max_packets, "max_packets")
     relation = CoveredObstaclesKept(
@@ -103,18 +90,8 @@ def packet_loss(
         min_detected=min_detected,
         scope=scope,
     )
-    blocks = st.tuples(st.integers(0, 3599), st.integers(1, max_packets))
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
-        frame = _frame(frame)
-
-        def lose(block: tuple[int, int]) -> Followup:
-            start, packets = block
-            fault = DropAzimuthBlock(
-                math.radians(start / 10), math.radians(PACKET_DEGREES * packets)
-            )
-            return Followup(fault.apply(frame), params={**fault.params(), "packets": packets})
-
-        return blocks.map(lose)
+        return lost_packets(_frame(frame), max_packets=max_packets)
 
     return MetamorphicRelation(name, followup, relation)

@@ -3,19 +3,17 @@ visibility detected."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
-from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.faults import CoveredObstaclesKept
-from pytest_metamorphic.lidar.perturb import SEED_BITS
 from pytest_metamorphic.lidar.scope import ScopeLike
-from pytest_metamorphic.lidar.weather import WEATHER_KINDS, Weather, WeatherKind
-from pytest_metamorphic.relations.lidar._common import _frame
+from pytest_metamorphic.lidar.weather import WEATHER_KINDS, WeatherKind
+from pytest_metamorphic.relations.lidar._common import _PROBE, _frame
+from pytest_metamorphic.strategies._faults import weathered_frames
 
 __all__ = ["DEFAULT_VISIBILITIES", "adverse_weather"]
 
@@ -50,15 +48,7 @@ def adverse_weather(
     and 50 m. Echoes are not checked for false obstacles (a cloud of droplet echoes in
     dense fog may well be reported); the relation is about what must not be lost.
     """
-    chosen_kinds = tuple(kinds)
-    if not chosen_kinds or any(kind not in WEATHER_KINDS for kind in chosen_kinds):
-        raise InvalidArgument(f"kinds={kinds!r} must be a non-empty subset of {WEATHER_KINDS}")
-    levels = tuple(visibilities)
-    if not levels or not all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-        for v in levels
-    ):
-        raise InvalidArgument(f"visibilities={visibilities!r} must be metres > 0")
+    weathered_frames(_PROBE, kinds=kinds, visibilities=visibilities)  # validate now
     relation = CoveredObstaclesKept(
         min_points=min_points,
         min_share=min_share,
@@ -67,18 +57,8 @@ def adverse_weather(
         scope=scope,
         range_param="visibility_m",
     )
-    draws = st.tuples(
-        st.sampled_from(chosen_kinds), st.sampled_from(levels), st.integers(0, 2**SEED_BITS - 1)
-    )
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
-        frame = _frame(frame)
-
-        def weather(draw: tuple[WeatherKind, float, int]) -> Followup:
-            kind, visibility, seed = draw
-            transform = Weather(visibility, kind, seed)
-            return Followup(transform.apply(frame), params=transform.params())
-
-        return draws.map(weather)
+        return weathered_frames(_frame(frame), kinds=kinds, visibilities=visibilities)
 
     return MetamorphicRelation(name, followup, relation)

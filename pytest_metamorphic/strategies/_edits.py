@@ -1,0 +1,117 @@
+"""Strategies for object edits: an object taken out of the frame, or a real one put in.
+
+Each takes the source frame and returns a strategy of
+:class:`~pytest_metamorphic.core.engine.Followup`. When the frame offers nothing to edit
+(no object to remove, no free place for any object) the strategy gives the frame itself
+with ``params['remove_object']`` / ``params['insert_object']`` set to None, which the
+relations treat as holding.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+from typing import Any
+
+from hypothesis import strategies as st
+
+from pytest_metamorphic.core.engine import Followup
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.edit import RemoveObject, removal_candidates
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.insert import (
+    InsertObject,
+    ObjectTemplate,
+    Placement,
+    free_placements,
+    object_templates,
+)
+from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
+from pytest_metamorphic.strategies._noise import _check_frame
+
+__all__ = ["inserted_objects", "removed_objects"]
+
+_Options = list[tuple[ObjectTemplate, list[Placement]]]
+# Free places per frame and options: the search reads the whole cloud once per frame.
+_PLACES: weakref.WeakKeyDictionary[Frame, dict[tuple[Any, ...], _Options]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def removed_objects(
+    frame: Any, *, margin: float = 0.15, scope: ScopeLike = "roi"
+) -> st.SearchStrategy[Followup]:
+    """The frame without one of its cars, pedestrians or cyclists
+    (:func:`~pytest_metamorphic.lidar.edit.removal_candidates`, shrinking toward the
+    nearest) removed by :class:`~pytest_metamorphic.lidar.edit.RemoveObject`."""
+    frame = _check_frame(frame)
+    RemoveObject(Box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), margin)  # validates margin
+    chosen = as_scope(scope)
+
+    def removals() -> st.SearchStrategy[Followup]:
+        objects = removal_candidates(frame, scope=chosen)
+        if not objects:
+            return st.just(Followup(frame, params={"remove_object": None}))
+
+        def remove(index: int) -> Followup:
+            removal = RemoveObject(objects[index], margin)
+            return Followup(removal.apply(frame), params=removal.params())
+
+        return st.integers(0, len(objects) - 1).map(remove)
+
+    # Candidates are found when the first example is drawn, not when the strategy is made.
+    return st.deferred(removals)
+
+
+def inserted_objects(
+    frame: Any,
+    *,
+    objects: Sequence[ObjectTemplate] | None = None,
+    min_returns: int = 30,
+    layout: BeamLayout = HDL64E,
+    scope: ScopeLike = "roi",
+) -> st.SearchStrategy[Followup]:
+    """The frame with one of ``objects`` (default: its own cars, pedestrians and cyclists
+    of >= ``min_returns`` returns, :func:`~pytest_metamorphic.lidar.insert.object_templates`)
+    put on free ground judged by ``scope``, in clear view, re-cast with ``layout``'s beams
+    (:class:`~pytest_metamorphic.lidar.insert.InsertObject`). Shrinks toward the first
+    object and the smallest move from where it was seen."""
+    frame = _check_frame(frame)
+    if not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
+    chosen = as_scope(scope)
+    templates = None if objects is None else tuple(objects)
+    if templates is not None:
+        for index, template in enumerate(templates):
+            if not isinstance(template, ObjectTemplate):
+                raise InvalidArgument(f"objects[{index}] is {template!r}, not an ObjectTemplate")
+        if not templates:
+            raise InvalidArgument("objects is empty: pass None to take the frame's own")
+    if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
+        raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
+    key = (templates, min_returns, chosen, id(layout))
+
+    def insert(template: ObjectTemplate, placement: Placement) -> Followup:
+        insertion = InsertObject.onto(frame, template, placement, layout=layout)
+        return Followup(insertion.apply(frame), params=insertion.params())
+
+    def insertions() -> st.SearchStrategy[Followup]:
+        cache = _PLACES.setdefault(frame, {})
+        if key not in cache:
+            found = templates or object_templates(frame, min_returns=min_returns, scope=chosen)
+            places = [(t, free_placements(frame, t, scope=chosen, layout=layout)) for t in found]
+            cache[key] = [(t, p) for t, p in places if p]
+        options = cache[key]
+        if not options:
+            return st.just(Followup(frame, params={"insert_object": None}))
+
+        def place(index: int) -> st.SearchStrategy[Followup]:
+            template, places = options[index]
+            return st.sampled_from(places).map(lambda placement: insert(template, placement))
+
+        return st.integers(0, len(options) - 1).flatmap(place)
+
+    # Places are searched when the first example is drawn, not when the strategy is made.
+    return st.deferred(insertions)
