@@ -1,4 +1,5 @@
-"""Sensor faults of a spinning LiDAR as follow-up transforms: beams missing, a packet lost.
+"""Sensor faults of a spinning LiDAR as follow-up transforms: beams missing, a packet lost,
+a coarser range resolution.
 
 A real sensor loses whole lasers (a dead channel, a dirty window segment) and whole
 packets (an Ethernet drop takes one azimuth block of every laser). Both need to know
@@ -34,6 +35,7 @@ __all__ = [
     "CoveredObstaclesKept",
     "DropAzimuthBlock",
     "DropRings",
+    "QuantizeRange",
     "RingMethod",
     "derive_rings",
 ]
@@ -244,6 +246,43 @@ class DropAzimuthBlock:
             "lost_block_start_deg": round(math.degrees(self.start), 3),
             "lost_block_width_deg": round(math.degrees(self.width), 3),
         }
+
+
+@dataclass(frozen=True)
+class QuantizeRange:
+    """Round every return's range to a multiple of ``step`` metres, along its beam (a
+    coarser range resolution: a cheaper sensor, or a driver packing ranges into fewer
+    bits; the HDL-64E reports 2 mm steps with 2 cm noise).
+
+    Parameters
+    ----------
+    step : float
+        Metres, in (0, 1].
+    """
+
+    step: float
+
+    def __post_init__(self) -> None:
+        value = self.step
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+            raise InvalidArgument(f"step={value!r} must be a number of metres in (0, 1]")
+        if not (math.isfinite(value) and 0 < value <= 1):
+            raise InvalidArgument(f"step={value!r} must be a number of metres in (0, 1]")
+        object.__setattr__(self, "step", float(value))
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        points = frame.cloud.points.copy()
+        xyz = points[:, :3].astype(np.float64)
+        ranges = np.linalg.norm(xyz, axis=1)
+        rounded = np.maximum(np.round(ranges / self.step), 1.0) * self.step
+        scale = np.divide(rounded, ranges, out=np.ones_like(ranges), where=ranges > 0)
+        points[:, :3] = (xyz * scale[:, None]).astype(np.float32)
+        return frame.with_cloud(frame.cloud.with_points(points))
+
+    def params(self) -> dict[str, Any]:
+        return {"range_step_m": self.step, "quantize_range": self}
 
 
 # -- what a fault must leave intact ---------------------------------------------------------

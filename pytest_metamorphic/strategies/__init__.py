@@ -28,6 +28,7 @@ _LAZY: dict[str, str] = {
     "rotated_frames": "_noise",
     "dead_beams": "_faults",
     "lost_packets": "_faults",
+    "quantized_ranges": "_faults",
     "weathered_frames": "_faults",
     "inserted_objects": "_edits",
     "removed_objects": "_edits",
@@ -49,6 +50,7 @@ __all__ = [
     "noise_inside_roi",
     "noise_outside_roi",
     "permuted_points",
+    "quantized_ranges",
     "removed_objects",
     "road_corridors",
     "rois",
@@ -67,7 +69,12 @@ if TYPE_CHECKING:  # pragma: no cover
         straight_roads,
     )
     from pytest_metamorphic.strategies._edits import inserted_objects, removed_objects
-    from pytest_metamorphic.strategies._faults import dead_beams, lost_packets, weathered_frames
+    from pytest_metamorphic.strategies._faults import (
+        dead_beams,
+        lost_packets,
+        quantized_ranges,
+        weathered_frames,
+    )
     from pytest_metamorphic.strategies._frames import frames
     from pytest_metamorphic.strategies._noise import (
         dropped_points,

@@ -19,6 +19,7 @@ from pytest_metamorphic.lidar.faults import (
     PACKET_DEGREES,
     DropAzimuthBlock,
     DropRings,
+    QuantizeRange,
     derive_rings,
 )
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
@@ -26,7 +27,7 @@ from pytest_metamorphic.lidar.perturb import SEED_BITS
 from pytest_metamorphic.lidar.weather import WEATHER_KINDS, Weather, WeatherKind
 from pytest_metamorphic.strategies._noise import _check_frame
 
-__all__ = ["dead_beams", "lost_packets", "weathered_frames"]
+__all__ = ["dead_beams", "lost_packets", "quantized_ranges", "weathered_frames"]
 
 
 def _positive(value: Any, name: str) -> int:
@@ -68,6 +69,23 @@ def lost_packets(frame: Any, *, max_packets: int = 10) -> st.SearchStrategy[Foll
         return Followup(fault.apply(frame), params={**fault.params(), "packets": packets})
 
     return blocks.map(lose)
+
+
+def quantized_ranges(
+    frame: Any, *, steps: Sequence[float] = (0.05, 0.1, 0.2)
+) -> st.SearchStrategy[Followup]:
+    """The frame with every range rounded to one of ``steps`` metres
+    (:class:`~pytest_metamorphic.lidar.faults.QuantizeRange`), shrinking toward the first."""
+    frame = _check_frame(frame)
+    levels = tuple(steps)
+    if not levels:
+        raise InvalidArgument("steps is empty")
+    faults = [QuantizeRange(step) for step in levels]  # validates each step
+
+    def quantize(fault: QuantizeRange) -> Followup:
+        return Followup(fault.apply(frame), params=fault.params())
+
+    return st.sampled_from(faults).map(quantize)
 
 
 def weathered_frames(

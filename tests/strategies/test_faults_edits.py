@@ -50,6 +50,8 @@ def test_edits_shrink_to_the_simplest_case() -> None:
     assert beams.params["drop_rings"] == DropRings((0,))
     packet = find(mst.lost_packets(source), lambda f: True, settings=FIND)
     assert packet.params["packets"] == 1 and packet.params["lost_block_start_deg"] == 0.0
+    coarse = find(mst.quantized_ranges(source), lambda f: True, settings=FIND)
+    assert coarse.params["range_step_m"] == 0.05
     weather = find(mst.weathered_frames(source), lambda f: True, settings=FIND)
     assert weather.params["weather"] == "fog" and weather.params["visibility_m"] == 200.0
     assert weather.params["weather_seed"] == 0
@@ -67,6 +69,8 @@ def test_arguments_are_named_before_any_frame_is_read() -> None:
         mst.dead_beams(source, max_rings=0)
     with pytest.raises(InvalidArgument, match="max_packets"):
         mst.lost_packets(source, max_packets=True)
+    with pytest.raises(InvalidArgument, match="step"):
+        mst.quantized_ranges(source, steps=(0.1, 2.0))
     with pytest.raises(InvalidArgument, match="visibilities"):
         mst.weathered_frames(source, visibilities=())
     with pytest.raises(InvalidArgument, match="margin"):

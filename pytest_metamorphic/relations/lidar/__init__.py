@@ -18,6 +18,7 @@ relation                         follow-up                            expected o
 :func:`mirror_symmetry`          cloud and ROI mirrored (y -> -y)     O mirrored
 :func:`beam_loss`                1-4 lasers return nothing            well-covered O kept
 :func:`packet_loss`              1-10 packets (azimuth blocks) lost   well-covered O kept
+:func:`range_quantization`       ranges rounded to 5/10/20 cm         O kept
 :func:`object_removal`           one car/pedestrian/cyclist removed   the others kept
 :func:`object_insertion`         a real object put on free ground     it is found, others kept
 :func:`adverse_weather`          fog or rain of 200/100/50 m          well-covered O kept
@@ -48,6 +49,7 @@ from pytest_metamorphic.relations.lidar.faults import (
     CoveredObstaclesKept,
     beam_loss,
     packet_loss,
+    range_quantization,
 )
 from pytest_metamorphic.relations.lidar.geometry import (
     MirroredObstacles,
@@ -102,6 +104,7 @@ __all__ = [
     "outside_removal",
     "packet_loss",
     "permutation_invariance",
+    "range_quantization",
     "removal_candidates",
     "rotation_equivariance",
 ]
@@ -131,6 +134,7 @@ def lidar_relations(
         mirror_symmetry(scope=scope),
         beam_loss(scope=scope),
         packet_loss(scope=scope),
+        range_quantization(scope=scope),
         object_removal(scope=scope),
         object_insertion(scope=scope),
         adverse_weather(scope=scope),
