@@ -30,7 +30,7 @@ from pytest_metamorphic.lidar.perturb import (
 )
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
-from pytest_metamorphic.lidar.symmetry import MirrorAcrossX
+from pytest_metamorphic.lidar.symmetry import MirrorAcrossX, ShiftAlongX
 from pytest_metamorphic.relations.lidar import (
     RotatedObstacles,
     duplication_invariance,
@@ -39,6 +39,7 @@ from pytest_metamorphic.relations.lidar import (
     mr1_subset,
     outside_removal,
     rotation_equivariance,
+    translation_equivariance,
 )
 from pytest_metamorphic.strategies import frames
 
@@ -331,3 +332,26 @@ def test_mr1_follow_ups_hold_the_papers_noise(item) -> None:
     assert not ROAD.contains(noise.points, method="exact").any()
     z = frame.cloud.points[:, 2]
     assert noise.points[:, 2].min() >= z.min() and noise.points[:, 2].max() <= z.max()
+
+
+def test_a_shift_along_x_moves_points_roi_and_boxes_and_the_reference_follows_on_a_street() -> None:
+    frame = street()
+    shifted = ShiftAlongX(5.0).apply(frame)
+    assert np.allclose(shifted.cloud.xyz[:, 0], frame.cloud.xyz[:, 0] + 5.0, atol=1e-5)
+    assert np.array_equal(shifted.cloud.xyz[:, 1:], frame.cloud.xyz[:, 1:])
+    assert shifted.boxes[0].center[0] == pytest.approx(frame.boxes[0].center[0] + 5.0)
+    assert shifted.roi.contains([(64.0, 0.0)])[0] and not frame.roi.contains([(64.0, 0.0)])[0]
+    relation = translation_equivariance().relation
+    source_output = SUT(frame)
+    for dx in (1.0, -2.0, 5.0):
+        move = ShiftAlongX(dx)
+        followup = move.apply(frame)
+        verdict = relation.check(
+            source_output, SUT(followup), CheckContext(frame, followup, move.params(), 0)
+        )
+        assert verdict.holds, verdict.explanation
+    with pytest.raises(InvalidArgument, match="shift_x_m"):
+        relation.check(source_output, source_output, CheckContext(frame, frame, {}, 0))
+    with pytest.raises(InvalidArgument, match="cell_size"):
+        translation_equivariance(cell_size=0)
+    assert translation_equivariance().name not in {r.name for r in lidar_relations()}

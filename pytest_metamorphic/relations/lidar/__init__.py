@@ -35,6 +35,8 @@ The equalities are exact: a perception stack that filters by ROI first and treat
 cloud as a set of points (as :class:`~pytest_metamorphic.lidar.perception.ReferencePerception`
 does) cannot tell the inputs apart. Rotation and reflection move the obstacles; see
 :func:`rotation_equivariance` and :func:`mirror_symmetry` for their tolerances.
+:func:`translation_equivariance` (a shift along x by whole grid cells) is optional and not
+in :func:`lidar_relations`: it tests only detectors that claim translation invariance.
 """
 
 from __future__ import annotations
@@ -55,8 +57,10 @@ from pytest_metamorphic.relations.lidar.geometry import (
     MirroredObstacles,
     MovedObstacles,
     RotatedObstacles,
+    ShiftedObstacles,
     mirror_symmetry,
     rotation_equivariance,
+    translation_equivariance,
 )
 from pytest_metamorphic.relations.lidar.invariance import (
     PACKET_POINTS,
@@ -90,6 +94,7 @@ __all__ = [
     "MovedObstacles",
     "ObstacleScope",
     "RotatedObstacles",
+    "ShiftedObstacles",
     "adverse_weather",
     "beam_loss",
     "duplication_invariance",
@@ -107,6 +112,7 @@ __all__ = [
     "range_quantization",
     "removal_candidates",
     "rotation_equivariance",
+    "translation_equivariance",
 ]
 
 
