@@ -225,6 +225,14 @@ class RemoveObject:
     def describe_edit(self) -> str:
         return f"removed {self.box.describe()}"
 
+    def to_json(self) -> dict[str, Any]:
+        return {"type": "RemoveObject", "box": self.box.to_json(), "margin": self.margin}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> RemoveObject:
+        """The removal :meth:`to_json` describes (artifacts replay with it)."""
+        return cls(Box.from_json(data["box"]), float(data["margin"]))
+
     def __repr__(self) -> str:
         return f"RemoveObject({self.box.describe()})"
 

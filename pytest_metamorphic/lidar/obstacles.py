@@ -139,6 +139,32 @@ class Box:
             self.points,
         )
 
+    def to_json(self) -> dict[str, Any]:
+        """``{"center", "size", "yaw", "label", "score", "points"}``, JSON-safe."""
+        return {
+            "center": list(self.center),
+            "size": list(self.size),
+            "yaw": self.yaw,
+            "label": self.label,
+            "score": self.score,
+            "points": self.points,
+        }
+
+    @classmethod
+    def from_json(cls, data: Any) -> Box:
+        """The box :meth:`to_json` describes."""
+        try:
+            return cls(
+                tuple(data["center"]),
+                tuple(data["size"]),
+                float(data.get("yaw", 0.0)),
+                data.get("label", "unknown"),
+                data.get("score"),
+                data.get("points"),
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise InvalidArgument(f"not a box: {data!r} ({error})") from None
+
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Which points lie in the box (faces included).
 

@@ -67,6 +67,11 @@ _PERTURBATIONS = {
     "DropPoints": ("pytest_metamorphic.lidar.perturb", "indices"),
     "DuplicatePoints": ("pytest_metamorphic.lidar.perturb", "indices"),
 }
+# Object edits that rebuild themselves from their own JSON (``cls.from_json``).
+_EDITS = {
+    "RemoveObject": "pytest_metamorphic.lidar.edit",
+    "InsertObject": "pytest_metamorphic.lidar.insert",
+}
 
 
 # -- JSON ---------------------------------------------------------------------------------------
@@ -98,8 +103,9 @@ def to_jsonable(value: Any, *, depth: int = 0) -> Any:
                 return {"shape": list(value.shape), "dtype": str(value.dtype)}
             return to_jsonable(value.tolist(), depth=depth + 1)
         return to_jsonable(value.item(), depth=depth + 1)
-    reducible = as_reducible(value)
-    to_json = getattr(reducible, "to_json", None)
+    to_json = getattr(value, "to_json", None)
+    if not callable(to_json):
+        to_json = getattr(as_reducible(value), "to_json", None)
     if callable(to_json):
         return to_json()
     return {"repr": describe_value(value)}
@@ -124,6 +130,8 @@ def _decode_params(params: Mapping[str, Any]) -> dict[str, Any]:
             if attribute == "points":
                 array = array.reshape(-1, 4)
             value = cls(array)
+        elif kind in _EDITS:
+            value = getattr(importlib.import_module(_EDITS[kind]), kind).from_json(value)
         decoded[key] = value
     return decoded
 

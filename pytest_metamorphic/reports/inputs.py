@@ -33,15 +33,7 @@ def is_box(value: Any) -> bool:
 
 
 def box_json(box: Any) -> dict[str, Any]:
-    return {
-        "label": box.label,
-        "center": list(box.center),
-        "size": list(box.size),
-        "yaw": box.yaw,
-        "score": box.score,
-        "points": box.points,
-        "describe": box.describe(),
-    }
+    return {**box.to_json(), "describe": box.describe()}
 
 
 def roi_json(roi: Any) -> dict[str, Any] | None:

@@ -21,12 +21,19 @@ from pytest_metamorphic import Followup, MetamorphicCase, MetamorphicViolation, 
 from pytest_metamorphic import relations as rel
 from pytest_metamorphic.core.errors import DataError
 from pytest_metamorphic.core.stats import Recorder, recording
+from pytest_metamorphic.lidar.edit import RemoveObject
+from pytest_metamorphic.lidar.insert import InsertObject
 from pytest_metamorphic.lidar.io import read_bag, read_pcd
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.relations.lidar import mr1_subset, outside_noise_invariance
+from pytest_metamorphic.relations.lidar import (
+    mr1_subset,
+    object_insertion,
+    object_removal,
+    outside_noise_invariance,
+)
 from pytest_metamorphic.reports import artifacts
 from pytest_metamorphic.reports.artifacts import (
     ArtifactWriter,
@@ -342,3 +349,36 @@ def test_to_jsonable_is_json_safe() -> None:
     assert encoded["array"] == [0, 1, 2] and encoded["scalar"] == 0.5
     assert encoded["nan"] == "nan" and encoded["nested"] == [[1, 2], {"inf": "-inf"}]
     assert "object object" in encoded["object"]["repr"]
+
+
+def _edit_test(system: Any, relation: Any, frame: Any) -> Any:
+    @settings(database=None, derandomize=True, max_examples=30, deadline=None)
+    @metamorphic(source=st.just(frame), relations=[relation], followups=1)
+    def test_edit(frame):
+        return system(frame)
+
+    return test_edit
+
+
+@pytest.mark.parametrize(
+    ("relation", "faulty", "kind", "sweep"),
+    [
+        (object_removal(), "obstacle_density_radius", RemoveObject, 2),
+        (object_insertion(), "nearest_object_list", InsertObject, 5),
+    ],
+    ids=["removal", "insertion"],
+)
+def test_object_edit_violations_replay_from_their_artifacts(
+    tmp_path: Path, relation: Any, faulty: str, kind: type, sweep: int
+) -> None:
+    """The edit is saved as JSON (its box, and for an insertion its returns and what they
+    hide), rebuilt on replay, and judged again: still failing with the faulty system,
+    passing with the reference."""
+    test = _edit_test(mutant(faulty), relation, kitti(sweep))
+    writer, _ = run_saving(test, tmp_path)
+    artifact = load_artifact(writer.written[-1])
+    edit = artifact.followup().params["remove_object" if kind is RemoveObject else "insert_object"]
+    assert isinstance(edit, kind)
+    assert replay(artifact, test._metamorphic).still_fails
+    fixed = _edit_test(ReferencePerception(), relation, kitti(sweep))
+    assert not replay(artifact, fixed._metamorphic).still_fails

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -190,12 +190,30 @@ class InsertObject:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "box": self.box.describe(),
+            "type": "InsertObject",
+            "box": self.box.to_json(),
             "points": self.points.tolist(),
             "ring": self.ring.tolist(),
             "hidden": self.hidden.tolist(),
+            "hidden_by": self.hidden_by.tolist(),
+            "hidden_xy": self.hidden_xy.tolist(),
+            "target_points": self.target_points,
             "template": None if self.template is None else self.template.describe(),
         }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> InsertObject:
+        """The insertion :meth:`to_json` describes, without its template (artifacts replay
+        with it)."""
+        return cls(
+            Box.from_json(data["box"]),
+            np.asarray(data["points"], dtype=np.float32).reshape(-1, 4),
+            np.asarray(data["ring"], dtype=np.uint8),
+            np.asarray(data["hidden"], dtype=np.intp),
+            np.asarray(data["hidden_by"], dtype=np.intp),
+            np.asarray(data["hidden_xy"], dtype=np.float64).reshape(-1, 2),
+            int(data["target_points"]),
+        )
 
     def __repr__(self) -> str:
         return f"InsertObject({self.box.describe()}, {len(self.points)} returns)"
