@@ -42,6 +42,7 @@ from pytest_metamorphic.lidar.faults import (
     CoveredObstaclesKept,
     DropAzimuthBlock,
     DropRings,
+    QuantizeRange,
 )
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
@@ -72,6 +73,7 @@ __all__ = [
     "lost_packets_followup",
     "mr1_campaign",
     "noise_followup",
+    "quantized_followup",
     "rain_followup",
     "recorded_frames",
     "removal_followup",
@@ -243,18 +245,21 @@ def _frame_source(frames: Any, sources: int | None) -> tuple[SourceFn, int]:
 #: Default severities: dead lasers (of 64), lost packets (of 1.04 degrees each). The
 #: relation holds for the reference pipeline up to 8 dead lasers on the KITTI sweeps; with
 #: 16 it loses 1 well-covered obstacle in 24 follow-ups (beyond the relation's validity).
-#: Fog and rain: the visibility in metres (smaller is worse).
+#: Fog and rain: the visibility in metres (smaller is worse); quantisation: the range step
+#: in centimetres.
 FAULT_SEVERITIES: dict[str, tuple[int, ...]] = {
     "beam_loss": (1, 2, 4, 8),
     "packet_loss": (1, 5, 10, 20, 40),
     "fog": (400, 200, 100, 50),
     "rain": (400, 200, 100, 50),
+    "quantization": (5, 10, 20),
 }
 _SEVERITY_LIMITS = {
     "beam_loss": HDL64E.lasers,
     "packet_loss": int(360 / PACKET_DEGREES),
     "fog": 100_000,
     "rain": 100_000,
+    "quantization": 100,
 }
 
 
@@ -284,18 +289,25 @@ def rain_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Foll
     return Followup(weather.apply(frame), params=weather.params())
 
 
+def quantized_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
+    """Every range rounded to ``severity`` centimetres."""
+    fault = QuantizeRange(severity / 100.0)
+    return Followup(fault.apply(frame), params=fault.params())
+
+
 _FAULT_FOLLOWUPS = {
     "beam_loss": dead_beams_followup,
     "packet_loss": lost_packets_followup,
     "fog": fog_followup,
     "rain": rain_followup,
+    "quantization": quantized_followup,
 }
 
 
 def fault_campaign(
     system: Callable[[Frame], Sequence[Box]],
     *,
-    fault: Literal["beam_loss", "packet_loss", "fog", "rain"],
+    fault: Literal["beam_loss", "packet_loss", "fog", "rain", "quantization"],
     name: str,
     frames: SourceFn | FrameCatalog | str | os.PathLike[str] | None = None,
     sources: int | None = None,
@@ -315,10 +327,11 @@ def fault_campaign(
     Parameters
     ----------
     system : callable(Frame) -> sequence of Box
-    fault : {"beam_loss", "packet_loss", "fog", "rain"}
+    fault : {"beam_loss", "packet_loss", "fog", "rain", "quantization"}
         Dead lasers (severity: how many of the 64), lost packets (severity: how many
-        consecutive 1.04-degree blocks), or fog and rain (severity: the visibility in
-        metres; obstacles farther than it are not judged).
+        consecutive 1.04-degree blocks), fog and rain (severity: the visibility in
+        metres; obstacles farther than it are not judged), or a coarser range resolution
+        (severity: the step in centimetres).
     name, frames, sources, followups, seed, scope
         As for :func:`mr1_campaign`.
     severities : sequence of int, optional

@@ -149,11 +149,12 @@ def test_weather_campaigns_give_a_curve_over_the_visibility() -> None:
     catalog = FrameCatalog(
         shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
     )
-    result = run_campaign(
-        fault_campaign(reference_system, fault="fog", name="fog", frames=catalog, followups=1)
-    )
-    assert sorted(result.sizes) == sorted(FAULT_SEVERITIES["fog"])
-    assert all(c.pairs == 6 and c.violations == 0 for c in result.sizes.values())
+    for fault in ("fog", "quantization"):
+        result = run_campaign(
+            fault_campaign(reference_system, fault=fault, name=fault, frames=catalog, followups=1)
+        )
+        assert sorted(result.sizes) == sorted(FAULT_SEVERITIES[fault])
+        assert all(c.pairs == 6 and c.violations == 0 for c in result.sizes.values())
     speckle = fault_campaign(
         system_of("intensity_floor"), fault="rain", name="speckle", sources=6,
         severities=(400, 50), followups=2,
