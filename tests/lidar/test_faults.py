@@ -11,9 +11,11 @@ import pytest
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.perturbation import find_reducible
 from pytest_metamorphic.core.relations import CheckContext
+from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.faults import DropAzimuthBlock, DropRings, QuantizeRange, derive_rings
 from pytest_metamorphic.lidar.hdl64 import HDL64E
 from pytest_metamorphic.lidar.perception import ReferencePerception
+from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.relations.lidar import range_quantization
 from tests.core.lidar_cases import kitti, street
@@ -137,3 +139,20 @@ def test_range_quantization_holds_on_every_kitti_sweep_and_a_rendered_street(sys
             assert verdict.holds, verdict.explanation
             covered += verdict.details["covered"]
     assert covered >= 40
+
+
+def test_a_repeated_range_filter_eats_a_car_once_ranges_come_in_10_cm_steps() -> None:
+    """``repeated_range_filter`` drops returns whose range repeats a neighbouring firing's:
+    harmless on the sweep as recorded, it loses a rendered car at 26 m once ranges are
+    rounded to 10 cm; reordering and repeating the points do not move it."""
+    faulty = mutant("repeated_range_filter")
+    frame = street()
+    assert faulty(frame) == ReferencePerception()(frame)
+    fault = QuantizeRange(0.1)
+    followup = fault.apply(frame)
+    verdict = range_quantization().relation.check(
+        faulty(frame), faulty(followup), CheckContext(frame, followup, fault.params(), 0)
+    )
+    assert not verdict.holds and "car at (25.9, 2.5) lost" in verdict.explanation
+    doubled = frame.with_cloud(PointCloud.concatenate([frame.cloud, frame.cloud[::-1]]))
+    assert faulty(doubled) == faulty(frame)
