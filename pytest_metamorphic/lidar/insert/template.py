@@ -79,7 +79,8 @@ class ObjectTemplate:
             raise InvalidArgument(
                 f"{where} has {len(points)} returns; a template needs >= {_MIN_RETURNS}"
             )
-        faces = _surface(points[:, :3])
+        bearing = math.atan2(box.center[1], box.center[0])
+        faces = _surface(points[:, :3], bearing)
         if len(faces) == 0:
             raise InvalidArgument(f"the returns of {where} do not form a surface")
         ground_z, _ = removal.ground_height(frame)
@@ -92,7 +93,6 @@ class ObjectTemplate:
                 offset[:, 2],
             ]
         )
-        bearing = math.atan2(box.center[1], box.center[0])
         return cls(
             label=box.label,
             size=box.size,
@@ -136,9 +136,10 @@ class ObjectTemplate:
         )
 
 
-def _surface(xyz: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Triangles joining returns that neighbour each other in the sensor's view."""
-    azimuth = np.unwrap(np.arctan2(xyz[:, 1], xyz[:, 0]))
+def _surface(xyz: NDArray[np.float64], bearing: float) -> NDArray[np.int64]:
+    """Triangles joining returns that neighbour each other in the sensor's view (azimuth
+    taken relative to ``bearing``, so an object behind the sensor does not straddle ±π)."""
+    azimuth = _relative_bearing(xyz, bearing)
     planar = np.hypot(xyz[:, 0], xyz[:, 1])
     view = np.column_stack(
         [azimuth / _AZIMUTH_SPACING, np.arctan2(xyz[:, 2], planar) / _ELEVATION_SPACING]
