@@ -315,7 +315,7 @@ def fault_campaign(
     followups: int = 1,
     seed: int = 0,
     min_points: int = 30,
-    min_share: float = 0.5,
+    min_share: float | None = None,
     min_height_share: float = 0.8,
     min_detected: float = 0.5,
     scope: ScopeLike = "roi",
@@ -338,7 +338,9 @@ def fault_campaign(
         Default :data:`FAULT_SEVERITIES` for the fault.
     min_points, min_share, min_height_share, min_detected
         What counts as well covered and as kept
-        (:class:`~pytest_metamorphic.lidar.faults.CoveredObstaclesKept`).
+        (:class:`~pytest_metamorphic.lidar.faults.CoveredObstaclesKept`); ``min_share``
+        defaults to 0.8 for fog and rain (as
+        :func:`~pytest_metamorphic.relations.lidar.adverse_weather`) and 0.5 otherwise.
     """
     if fault not in _FAULT_FOLLOWUPS:
         raise InvalidArgument(f"fault={fault!r} must be one of {sorted(_FAULT_FOLLOWUPS)}")
@@ -346,6 +348,9 @@ def fault_campaign(
     _check_system(system)
     levels = tuple(FAULT_SEVERITIES[fault] if severities is None else severities)
     limit = _SEVERITY_LIMITS[fault]
+    weather = fault in ("fog", "rain")
+    if min_share is None:
+        min_share = 0.8 if weather else 0.5
     if not levels or not all(
         isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= limit for v in levels
     ):
@@ -362,7 +367,7 @@ def fault_campaign(
             min_height_share=min_height_share,
             min_detected=min_detected,
             scope=chosen,
-            range_param="visibility_m" if fault in ("fog", "rain") else None,
+            range_param="visibility_m" if weather else None,
         ),
         sizes=levels,
         sources=sources,

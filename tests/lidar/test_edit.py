@@ -10,11 +10,9 @@ import pytest
 
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject, box_gap, removal_candidates
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
-from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.relations.lidar import lidar_relations, object_removal
 from tests.core.lidar_cases import kitti, street
@@ -85,19 +83,3 @@ def test_nearby_and_shadowed_obstacles_are_exempt() -> None:
     with pytest.raises(InvalidArgument, match="clearance"):
         object_removal(clearance=float("nan"))
     assert object_removal().name in {r.name for r in lidar_relations()}
-
-
-def test_a_cell_scaled_by_the_obstacle_count_changes_far_obstacles_when_one_is_removed() -> None:
-    """``obstacle_density_radius`` scales its clustering cells with the distinct obstacle
-    points in the ROI: taking the nearest car out of KITTI sweep 2 coarsens the cells, and
-    obstacles 17-28 m from it merge. Reordering and repeating points do not move it."""
-    faulty = mutant("obstacle_density_radius")
-    frame = kitti(2)
-    removal = RemoveObject(removal_candidates(frame)[0])
-    followup = removal.apply(frame)
-    verdict = object_removal().relation.check(
-        faulty(frame), faulty(followup), CheckContext(frame, followup, removal.params(), 0)
-    )
-    assert not verdict.holds and "has no match" in verdict.explanation
-    doubled = PointCloud.concatenate([frame.cloud, frame.cloud[::-1]])
-    assert faulty(frame.with_cloud(doubled)) == faulty(frame)

@@ -363,7 +363,7 @@ def _edit_test(system: Any, relation: Any, frame: Any) -> Any:
 @pytest.mark.parametrize(
     ("relation", "faulty", "kind", "sweep"),
     [
-        (object_removal(), "obstacle_density_radius", RemoveObject, 2),
+        (object_removal(), "count_scaled_radius", RemoveObject, 2),
         (object_insertion(), "nearest_object_list", InsertObject, 5),
     ],
     ids=["removal", "insertion"],

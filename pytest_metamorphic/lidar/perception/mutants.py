@@ -29,8 +29,6 @@ nearest_object_list         only the 20 nearest obstacles reported (a fixed-leng
                             list, as ADAS sensors send over CAN)
 intensity_floor             returns weaker than intensity 0.05 dropped as speckle (a filter
                             tuned in clear weather)
-obstacle_density_radius     clustering cell scaled with the number of distinct obstacle
-                            points in the ROI (fewer obstacles, coarser cells)
 repeated_range_filter       returns whose range repeats a neighbouring firing's dropped as
                             dual-return echoes (harmless at 2 mm range steps)
 ==========================  =================================================================
@@ -184,26 +182,6 @@ class CountScaledRadius(ReferencePerception):
         scale = math.sqrt(max(len(sweep), 1) / 120_000)
         params = ClusterParams(cell_size=self.params.cluster.cell_size * scale)
         return cluster_points(points, params)
-
-
-class ObstacleDensityRadius(ReferencePerception):
-    """The clustering cell scales with the distinct obstacle points in the ROI.
-
-    Meant to keep a sparse scene's objects in one piece: the fewer obstacle points, the
-    coarser the occupancy cells. Unlike ``count_scaled_radius`` it counts only what it
-    clusters, and each point once, so noise outside the ROI, repeats, reordering and
-    rigid motions leave it alone; an object taken out of the scene (or put in) re-scales
-    every other object's cells, and two far neighbours merge (or one splits).
-    """
-
-    name = "obstacle_density_radius"
-    reference_points = 8000
-
-    def segment(self, points: NDArray[np.float32], sweep: NDArray[np.float32]) -> Clusters:
-        distinct = len(np.unique(points, axis=0))
-        scale = math.sqrt(self.reference_points / max(distinct, 1))
-        cell = self.params.cluster.cell_size * min(max(scale, 0.6), 2.0)
-        return cluster_points(points, ClusterParams(cell_size=cell))
 
 
 class OrderDependentVoxels(ReferencePerception):
@@ -403,7 +381,6 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         GlobalGroundPlane,
         RoiOffByOne,
         CountScaledRadius,
-        ObstacleDensityRadius,
         OrderDependentVoxels,
         GridAnchoredAtSweep,
         AxisAlignedBoxes,

@@ -26,7 +26,7 @@ def adverse_weather(
     kinds: Sequence[WeatherKind] = WEATHER_KINDS,
     visibilities: Sequence[float] = DEFAULT_VISIBILITIES,
     min_points: int = 30,
-    min_share: float = 0.5,
+    min_share: float = 0.8,
     min_height_share: float = 0.8,
     min_detected: float = 0.5,
     scope: ScopeLike = "roi",
@@ -42,6 +42,11 @@ def adverse_weather(
     obstacles whose centre is within the visibility: those left with >= ``min_points``
     points and >= ``min_share`` of them, over >= ``min_height_share`` of their height,
     keep >= ``min_detected`` of those points in follow-up obstacles (any label).
+    ``min_share`` is 80 % here, not the 50 % of the sensor faults: weather thins an object
+    by reflectance and incidence, its dark and grazing parts first, and what is left of a
+    half-thinned object need not look like one (a random rendered street showed it: a
+    small car at 27 m in fog of 100 m kept 34 of 53 points, its front, and came out in
+    pieces).
 
     Precondition (measured, tests): the reference pipeline and the whole-scene detector
     hold it on all six KITTI sweeps and a rendered street for fog and rain of 200, 100
