@@ -10,9 +10,11 @@ import pytest
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
+import conftest
 from pytest_metamorphic import InvalidArgument, MetamorphicViolation, metamorphic
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.lidar.edit import OthersKept
+from pytest_metamorphic.lidar.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.insert import (
     INSERTED_INSTANCE,
     RANGE_FACTORS,
@@ -22,6 +24,7 @@ from pytest_metamorphic.lidar.insert import (
     Placement,
     free_placements,
 )
+from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
@@ -213,3 +216,21 @@ def test_checks_name_what_they_need() -> None:
         object_insertion(objects=[])
     with pytest.raises(InvalidArgument, match="min_points"):
         InsertedDetected(min_points=0)
+
+
+def test_a_short_range_gate_misses_a_labelled_car_put_back_at_56_m() -> None:
+    """``short_range_gate`` drops everything beyond 40 m: no relation comparing runs sees
+    it (nothing there is ever reported), an inserted object does. KITTI sweep 1's labelled
+    car, seen at 70 m, put on free ground at 56 m with 114 returns."""
+    frame = FrameCatalog(
+        conftest.shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    ).load(1)
+    template = object_templates(frame)[0]
+    insertion = InsertObject.onto(frame, template, free_placements(frame, template, limit=1)[0])
+    followup = insertion.apply(frame)
+    faulty = mutant("short_range_gate")
+    context = CheckContext(frame, followup, insertion.params(), 0)
+    verdict = object_insertion().relation.check(faulty(frame), faulty(followup), context)
+    assert not verdict.holds and "(114 returns) is not detected" in verdict.explanation
+    reference = ReferencePerception()
+    assert object_insertion().relation.check(reference(frame), reference(followup), context)

@@ -29,6 +29,8 @@ nearest_object_list         only the 20 nearest obstacles reported (a fixed-leng
                             list, as ADAS sensors send over CAN)
 intensity_floor             returns weaker than intensity 0.05 dropped as speckle (a filter
                             tuned in clear weather)
+short_range_gate            returns beyond 40 m dropped (a range gate carried over from a
+                            shorter-range sensor)
 repeated_range_filter       returns whose range repeats a neighbouring firing's dropped as
                             dual-return echoes (harmless at 2 mm range steps)
 ==========================  =================================================================
@@ -360,6 +362,21 @@ class RepeatedRangeFilter(ReferencePerception):
         return points[~repeated]
 
 
+class ShortRangeGate(ReferencePerception):
+    """Returns farther than ``max_range`` metres (bird's eye) are dropped first.
+
+    A range gate carried over from a 16-beam sensor's configuration. Nothing beyond it is
+    ever reported, in the source or in any follow-up, so relations that compare the two
+    never see it; an object inserted at a range nobody saw one at before does.
+    """
+
+    name = "short_range_gate"
+    max_range = 40.0
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        return points[np.hypot(points[:, 0], points[:, 1]) <= self.max_range]
+
+
 def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
     """(n,) int64: one key per voxel of edge ``size`` (cells packed into one integer)."""
     cells = np.floor(coordinates / np.float32(size)).astype(np.int64)
@@ -390,6 +407,7 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         NearestObjectList,
         IntensityFloor,
         RepeatedRangeFilter,
+        ShortRangeGate,
     )
 }
 
