@@ -27,7 +27,7 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.obstacles import Box, share_inside
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
 __all__ = [
@@ -384,7 +384,7 @@ class CoveredObstaclesKept(Relation):
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         source, followup = _frames(context)
         boxes = _boxes(source_output, "source")
-        found = [box.grown(0.1) for box in _boxes(followup_output, "follow-up")]
+        found = _boxes(followup_output, "follow-up")
         reach = math.inf
         if self.range_param is not None:
             reach = float(context.params.get(self.range_param, math.inf))
@@ -392,10 +392,7 @@ class CoveredObstaclesKept(Relation):
         missing = []
         for index, before, after in covered:
             remaining = followup.cloud.xyz[boxes[index].contains(followup.cloud.xyz)]
-            detected = np.zeros(len(remaining), dtype=bool)
-            for box in found:
-                detected |= box.contains(remaining)
-            share = float(detected.mean())
+            share = share_inside(remaining, found)
             if share < self.min_detected:
                 missing.append((index, before, after, share))
         details = {

@@ -30,6 +30,7 @@ __all__ = [
     "SizePrior",
     "bev_iou",
     "center_distances",
+    "share_inside",
     "unmatched_twins",
 ]
 
@@ -291,6 +292,19 @@ def _corners(boxes: Sequence[Box]) -> NDArray[np.float64]:
     if not boxes:
         return np.empty((0, 4, 2))
     return np.stack([box.corners_bev() for box in boxes])
+
+
+def share_inside(points: ArrayLike, boxes: Sequence[Box], *, grow: float = 0.1) -> float:
+    """The share of ``points`` (n, 3) inside any of ``boxes`` grown by ``grow`` metres on
+    every side (0 when there are no points): how much of an object a detector's boxes hold,
+    whatever their labels and however many pieces."""
+    xyz = _as_xyz(points)
+    if len(xyz) == 0:
+        return 0.0
+    inside = np.zeros(len(xyz), dtype=bool)
+    for box in boxes:
+        inside |= box.grown(grow).contains(xyz)
+    return float(inside.mean())
 
 
 def center_distances(source: Sequence[Box], followup: Sequence[Box]) -> NDArray[np.float64]:
