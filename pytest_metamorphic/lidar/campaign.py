@@ -263,6 +263,17 @@ _SEVERITY_LIMITS = {
 }
 
 
+def _severities(
+    severities: Sequence[int] | None, default: tuple[int, ...], limit: int
+) -> tuple[int, ...]:
+    levels = tuple(default if severities is None else severities)
+    if not levels or not all(
+        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= limit for v in levels
+    ):
+        raise InvalidArgument(f"severities={severities!r} must be ints in [1, {limit}]")
+    return levels
+
+
 def dead_beams_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
     """``severity`` random lasers of the HDL-64E return nothing."""
     rings = rng.choice(HDL64E.lasers, size=severity, replace=False)
@@ -346,15 +357,10 @@ def fault_campaign(
         raise InvalidArgument(f"fault={fault!r} must be one of {sorted(_FAULT_FOLLOWUPS)}")
     chosen = as_scope(scope)
     _check_system(system)
-    levels = tuple(FAULT_SEVERITIES[fault] if severities is None else severities)
-    limit = _SEVERITY_LIMITS[fault]
+    levels = _severities(severities, FAULT_SEVERITIES[fault], _SEVERITY_LIMITS[fault])
     weather = fault in ("fog", "rain")
     if min_share is None:
         min_share = 0.8 if weather else 0.5
-    if not levels or not all(
-        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= limit for v in levels
-    ):
-        raise InvalidArgument(f"severities={severities!r} must be ints in [1, {limit}]")
     source, sources = _frame_source(frames, sources)
     return Campaign(
         name=name,
@@ -472,11 +478,7 @@ def edit_campaign(
         raise InvalidArgument(f"edit={edit!r} must be one of {sorted(_EDIT_FOLLOWUPS)}")
     chosen = as_scope(scope)
     _check_system(system)
-    levels = tuple(EDIT_SEVERITIES[edit] if severities is None else severities)
-    if not levels or not all(
-        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 1000 for v in levels
-    ):
-        raise InvalidArgument(f"severities={severities!r} must be ints in [1, 1000]")
+    levels = _severities(severities, EDIT_SEVERITIES[edit], 1000)
     kept = OthersKept(clearance=clearance, matcher=matcher, scope=chosen)
     relation: Relation = kept
     if edit == "insertion":

@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 
-__all__ = ["COLUMNS", "NonFinitePolicy", "PointCloud", "column_bounds"]
+__all__ = ["COLUMNS", "NonFinitePolicy", "PointCloud", "column_bounds", "intensity_scale"]
 
 COLUMNS = ("x", "y", "z", "intensity")
 NonFinitePolicy = Literal["reject", "drop"]
@@ -352,6 +352,13 @@ def _checked_timestamp(timestamp: float | None, name: str) -> float | None:
 
 #: Rows folded into one before reducing over axis 0 (see column_bounds).
 _FOLD = 256
+
+
+def intensity_scale(intensity: ArrayLike) -> float:
+    """255 for intensities recorded on a 0-255 scale (any value above 1), else 1: what to
+    divide by to read them as reflectance in 0-1."""
+    values = np.asarray(intensity)
+    return 255.0 if values.size and float(values.max()) > 1.0 else 1.0
 
 
 def column_bounds(array: ArrayLike) -> np.ndarray:

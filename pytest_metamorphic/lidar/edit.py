@@ -36,7 +36,14 @@ from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
-__all__ = ["OthersKept", "RemoveObject", "box_gap", "removal_candidates", "shadow_overlaps"]
+__all__ = [
+    "OthersKept",
+    "RemoveObject",
+    "beams_meeting",
+    "box_gap",
+    "removal_candidates",
+    "shadow_overlaps",
+]
 
 _GROUND_RING = (0.5, 4.0)  # metres around the footprint where the ground is sampled
 _GROUND_BAND = 0.3  # metres above the box bottom still counted as ground
@@ -67,6 +74,28 @@ def _polar(corners: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[n
     bearing = np.arctan2(corners[:, 1], corners[:, 0])
     bearing = bearing[0] + np.remainder(bearing - bearing[0] + math.pi, 2 * math.pi) - math.pi
     return bearing, np.hypot(corners[:, 0], corners[:, 1])
+
+
+def beams_meeting(
+    xyz: NDArray[np.floating],
+    direction: NDArray[np.float64],
+    near: NDArray[np.float64],
+    far: NDArray[np.float64],
+    *,
+    radius: float,
+) -> NDArray[np.bool_]:
+    """(b,) bool: which beams meet one of the returns ``xyz`` (n, 3) strictly between
+    ``near`` and ``far`` metres along them, a return counting for a beam when its direction
+    is within ``radius`` radians of the beam's ``direction`` (b, 3, unit vectors)."""
+    met = np.zeros(len(direction), dtype=bool)
+    if len(direction) == 0 or len(xyz) == 0:
+        return met
+    ranges = np.linalg.norm(np.asarray(xyz, dtype=np.float64), axis=1)
+    tree = cKDTree(xyz / np.maximum(ranges, 1e-9)[:, None])
+    for beam, neighbours in enumerate(tree.query_ball_point(direction, radius)):
+        along = ranges[neighbours]
+        met[beam] = bool(((along > near[beam]) & (along < far[beam])).any())
+    return met
 
 
 def shadow_overlaps(near: Box, box: Box, *, reach: float = math.inf) -> bool:
@@ -129,18 +158,20 @@ class RemoveObject:
             return self.box.bottom_z, 0.0
         return float(np.median(points[ground, 2])), float(np.median(points[ground, 3]))
 
-    def removed(self, frame: Frame) -> NDArray[np.bool_]:
-        """Which points are the object's (inside the grown box, above the ground band)."""
+    def removed(self, frame: Frame, ground_z: float | None = None) -> NDArray[np.bool_]:
+        """Which points are the object's (inside the grown box, above the ground band);
+        ``ground_z``: :meth:`ground_height`'s, when already known."""
         points = frame.cloud.points
-        ground_z, _ = self.ground_height(frame)
+        if ground_z is None:
+            ground_z, _ = self.ground_height(frame)
         return self.region().contains(points[:, :3]) & (points[:, 2] > ground_z + 0.1)
 
     def apply(self, frame: Frame) -> Frame:
         if not isinstance(frame, Frame):
             raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
         cloud = frame.cloud
-        removed = self.removed(frame)
         ground_z, intensity = self.ground_height(frame)
+        removed = self.removed(frame, ground_z)
         rows = np.flatnonzero(removed)
         xyz = cloud.points[rows, :3].astype(np.float64)
         ranges = np.linalg.norm(xyz, axis=1)
@@ -194,16 +225,8 @@ class RemoveObject:
         """Beams that meet another object (a return above the ground, along the same beam
         within the sensor's angular resolution) before they reach the ground: they return
         from that object, whose own returns are already in the sweep, so they add none."""
-        blocked = np.zeros(len(direction), dtype=bool)
         solid = others[others[:, 2] > ground_z + _GROUND_BAND]
-        if len(direction) == 0 or len(solid) == 0:
-            return blocked
-        solid_range = np.linalg.norm(solid[:, :3].astype(np.float64), axis=1)
-        tree = cKDTree(solid[:, :3] / np.maximum(solid_range, 1e-9)[:, None])
-        for beam, neighbours in enumerate(tree.query_ball_point(direction, _BEAM_WIDTH)):
-            along = solid_range[neighbours]
-            blocked[beam] = bool(((along > ranges[beam]) & (along < reach[beam])).any())
-        return blocked
+        return beams_meeting(solid[:, :3], direction, ranges, reach, radius=_BEAM_WIDTH)
 
     def in_shadow(self, box: Box) -> bool:
         """Whether ``box`` lies (partly) in the removed object's shadow: the bearings the

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.cloud import intensity_scale
 from pytest_metamorphic.lidar.frame import Frame
 
 __all__ = ["SCATTER", "WEATHER_KINDS", "Weather", "WeatherKind", "extinction"]
@@ -111,7 +112,7 @@ class Weather:
         intensity = frame.cloud.intensity
         ranges = np.linalg.norm(xyz, axis=1)
         floor = _CLEAR_AIR_MARGIN * _THRESHOLD * ranges**2
-        reflectance = np.maximum(intensity / _intensity_scale(frame), floor)
+        reflectance = np.maximum(intensity / intensity_scale(frame.cloud.intensity), floor)
         transmitted = np.exp(-2.0 * self.alpha * ranges)
         lost = reflectance * transmitted < _THRESHOLD * ranges**2
         rng = np.random.default_rng([self.seed, len(xyz)])
@@ -131,7 +132,7 @@ class Weather:
         points[:, 3] = intensity
         ranges = np.linalg.norm(points[moved, :3].astype(np.float64), axis=1)
         points[moved, :3] *= (echo[moved] / ranges)[:, None].astype(np.float32)
-        points[moved, 3] = _DROPLET_REFLECTANCE * _intensity_scale(frame)
+        points[moved, 3] = _DROPLET_REFLECTANCE * intensity_scale(frame.cloud.intensity)
         return frame.with_cloud(frame.cloud.with_points(points)[keep])
 
     def params(self) -> dict[str, Any]:
@@ -144,9 +145,3 @@ class Weather:
 
     def __repr__(self) -> str:
         return f"Weather({self.kind}, visibility {self.visibility:g} m, seed {self.seed})"
-
-
-def _intensity_scale(frame: Frame) -> float:
-    """255 for clouds whose intensity runs to 255, else 1."""
-    intensity = frame.cloud.intensity
-    return 255.0 if len(intensity) and float(intensity.max()) > 1.0 else 1.0

@@ -13,10 +13,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.edit import (
-    box_gap,
-    shadow_overlaps,
-)
+from pytest_metamorphic.lidar.edit import beams_meeting, box_gap, shadow_overlaps
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.insert.template import (
@@ -104,7 +101,14 @@ class InsertObject:
         behind = np.zeros(len(near), dtype=bool)
         behind[ray] = hit < ranges[near[ray]] - 0.05
         hidden = near[behind]
-        blocked = _blocked(unit[~behind], ranges[near[~behind]], direction, distance)
+        # A beam that meets a target return in front of the object returns from it instead.
+        blocked = beams_meeting(
+            xyz[near[~behind]],
+            direction,
+            np.zeros(len(distance)),
+            distance - 0.05,
+            radius=_BEAM_RADIUS,
+        )
         direction, ring, distance = direction[~blocked], ring[~blocked], distance[~blocked]
         intensity = _intensity(template, mesh, direction, distance)
         points = np.column_stack([direction * distance[:, None], intensity]).astype(np.float32)
@@ -231,23 +235,6 @@ def _returns(
     seen = distance >= layout.min_range
     rows = inside[ray[seen]]
     return rays.directions[rows], rays.ring[rows], distance[seen]
-
-
-def _blocked(
-    unit: NDArray[np.float64],
-    ranges: NDArray[np.float64],
-    direction: NDArray[np.float64],
-    distance: NDArray[np.float64],
-) -> NDArray[np.bool_]:
-    """Inserted beams that meet a target return in front of the object first (within the
-    beam's angular half-width)."""
-    blocked = np.zeros(len(direction), dtype=bool)
-    if len(unit) == 0 or len(direction) == 0:
-        return blocked
-    tree = cKDTree(unit)
-    for beam, neighbours in enumerate(tree.query_ball_point(direction, _BEAM_RADIUS)):
-        blocked[beam] = bool((ranges[neighbours] < distance[beam] - 0.05).any())
-    return blocked
 
 
 def _intensity(

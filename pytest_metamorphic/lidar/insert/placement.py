@@ -7,7 +7,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from pytest_metamorphic.core.errors import InvalidArgument
@@ -18,6 +17,7 @@ from pytest_metamorphic.lidar.insert.template import (
     Placement,
     _bearing_window,
 )
+from pytest_metamorphic.lidar.minimize import footprint_distances
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
 
@@ -78,7 +78,7 @@ class _TargetGround:
         if len(near) == 0:
             return None
         footprint = box.grown(_FREE_MARGIN)
-        inside = near[_in_footprint(footprint, self.xyz[near, :2])]
+        inside = near[footprint_distances(self.xyz[near], [footprint]) == 0]
         if self.solid[inside].any() or len(inside) < 5:
             return None
         return float(np.median(self.xyz[inside, 2]))
@@ -115,14 +115,6 @@ def _factors(factors: Sequence[float]) -> tuple[float, ...]:
     ):
         raise InvalidArgument(f"factors={factors!r} must be positive numbers")
     return tuple(float(f) for f in chosen)
-
-
-def _in_footprint(box: Box, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
-    offset = xy - np.asarray(box.center[:2])
-    c, s = math.cos(box.yaw), math.sin(box.yaw)
-    along = np.abs(offset[:, 0] * c + offset[:, 1] * s) <= box.size[0] / 2
-    across = np.abs(-offset[:, 0] * s + offset[:, 1] * c) <= box.size[1] / 2
-    return along & across
 
 
 def free_placements(

@@ -73,7 +73,8 @@ class ObjectTemplate:
         if not isinstance(frame, Frame):
             raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
         removal = RemoveObject(box, margin)
-        points = frame.cloud.points[removal.removed(frame)].astype(np.float64)
+        ground_z, _ = removal.ground_height(frame)
+        points = frame.cloud.points[removal.removed(frame, ground_z)].astype(np.float64)
         where = f"{box.describe()} in {frame!r}"
         if len(points) < _MIN_RETURNS:
             raise InvalidArgument(
@@ -83,7 +84,6 @@ class ObjectTemplate:
         faces = _surface(points[:, :3], bearing)
         if len(faces) == 0:
             raise InvalidArgument(f"the returns of {where} do not form a surface")
-        ground_z, _ = removal.ground_height(frame)
         c, s = math.cos(box.yaw), math.sin(box.yaw)
         offset = points[:, :3] - np.array([box.center[0], box.center[1], ground_z])
         local = np.column_stack(
@@ -181,12 +181,12 @@ def object_templates(
         if not isinstance(frame, Frame):
             raise InvalidArgument(f"frames[{index}] is {frame!r}, not a Frame")
         for box in removal_candidates(frame, scope=scope):
-            if RemoveObject(box).removed(frame).sum() < min_returns:
-                continue
             try:
-                templates.append(ObjectTemplate.from_frame(frame, box))
-            except InvalidArgument:  # returns that do not form a surface (a thin pole)
+                template = ObjectTemplate.from_frame(frame, box)
+            except InvalidArgument:  # too few returns, or no surface (a thin pole)
                 continue
+            if len(template.vertices) >= min_returns:
+                templates.append(template)
     return templates
 
 

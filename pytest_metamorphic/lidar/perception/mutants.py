@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.cloud import intensity_scale
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Clusters, cluster_points
 from pytest_metamorphic.lidar.perception.ground import ground_heights
@@ -331,8 +332,7 @@ class IntensityFloor(ReferencePerception):
     floor = 0.05
 
     def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
-        scale = 255.0 if len(points) and float(points[:, 3].max()) > 1.0 else 1.0
-        return points[points[:, 3] >= self.floor * scale]
+        return points[points[:, 3] >= self.floor * intensity_scale(points[:, 3])]
 
 
 class RepeatedRangeFilter(ReferencePerception):
