@@ -32,7 +32,7 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.minimize import footprint_distances
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher, as_boxes
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
@@ -294,8 +294,8 @@ class OthersKept(Relation):
         edit = _edit(context.params, self.name)
         if edit is None:  # the source had no object to edit: the follow-up is the source
             return Verdict(True, self.name, "no object edited", {"edited": None})
-        source = [_box(box, "source") for box in source_output]
-        found = [_box(box, "follow-up") for box in followup_output]
+        source = as_boxes(source_output, "source")
+        found = as_boxes(followup_output, "follow-up")
         region = edit.region()
         judged = self.scope.judged(source, context.source_input)
         rows = [
@@ -336,9 +336,3 @@ def _edit(params: Mapping[str, Any], relation: str) -> Any:
         "params['insert_object'] (use object_removal(), object_insertion() or the edit's "
         "params())"
     )
-
-
-def _box(value: Any, which: str) -> Box:
-    if not isinstance(value, Box):
-        raise InvalidArgument(f"object removal needs Box outputs; a {which} item is {value!r}")
-    return value

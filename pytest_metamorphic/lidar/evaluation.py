@@ -29,7 +29,7 @@ import numpy as np
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher, one_to_one
-from pytest_metamorphic.lidar.obstacles import LABELS, Box, CenterDistanceMatcher, Label
+from pytest_metamorphic.lidar.obstacles import LABELS, Box, CenterDistanceMatcher, Label, as_boxes
 from pytest_metamorphic.lidar.roi import ROI
 
 __all__ = [
@@ -156,8 +156,8 @@ def evaluate(
         raise InvalidArgument(
             f"matcher={matcher!r} must be a Matcher (with .pairwise) or a mapping of them"
         )
-    detections = _as_boxes(detections, "detections")
-    truth = _as_boxes(truth, "truth")
+    detections = as_boxes(detections, "detections")
+    truth = as_boxes(truth, "truth")
     scores: dict[Label, ClassScore] = {}
     matches: list[tuple[Label, int, int]] = []
     for label in wanted:
@@ -195,7 +195,7 @@ def visible_truth(
         raise InvalidArgument(f"min_points={min_points!r} must be an int >= 0")
     xyz = np.asarray(getattr(points, "points", points))[:, :3]
     kept = []
-    for box in _as_boxes(list(truth), "truth"):
+    for box in as_boxes(list(truth), "truth"):
         if roi is not None and not roi.contains([box.center[:2]], method="exact")[0]:
             continue
         if int(np.count_nonzero(box.contains(xyz))) >= min_points:
@@ -243,12 +243,4 @@ def _as_labels(labels: Iterable[Label]) -> list[Label]:
     for label in result:
         if label not in LABELS:
             raise InvalidArgument(f"labels contains {label!r}; known labels are {LABELS}")
-    return result
-
-
-def _as_boxes(boxes: Sequence[Any], name: str) -> list[Box]:
-    result = list(boxes)
-    for index, box in enumerate(result):
-        if not isinstance(box, Box):
-            raise InvalidArgument(f"{name}[{index}] is {type(box).__name__}, not Box")
     return result

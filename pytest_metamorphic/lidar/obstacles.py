@@ -28,6 +28,7 @@ __all__ = [
     "IoUMatcher",
     "Label",
     "SizePrior",
+    "as_boxes",
     "bev_iou",
     "center_distances",
     "share_inside",
@@ -280,10 +281,22 @@ def _as_xyz(points: Any) -> NDArray[np.float64]:
     return array[:, :3]
 
 
-def _as_boxes(boxes: Sequence[Any], name: str) -> Sequence[Box]:
+def as_boxes(value: Any, which: str) -> list[Box]:
+    """``value`` as a list of :class:`Box`; an :class:`InvalidArgument` naming ``which``
+    (e.g. "source", "follow-up") and the first item that is not one."""
+    if isinstance(value, (str, bytes)):
+        raise InvalidArgument(f"the {which} must be a list of Box, got {value!r}")
+    try:
+        boxes = list(value)
+    except TypeError:
+        raise InvalidArgument(f"the {which} must be a list of Box, got {value!r}") from None
     for index, box in enumerate(boxes):
         if not isinstance(box, Box):
-            raise InvalidArgument(f"{name}[{index}] is {type(box).__name__}, not Box")
+            raise InvalidArgument(
+                f"the {which}[{index}] is {box!r}; obstacle relations need "
+                "pytest_metamorphic.lidar.obstacles.Box items (see "
+                "pytest_metamorphic.lidar.detectors for converters)"
+            )
     return boxes
 
 
@@ -309,8 +322,8 @@ def share_inside(points: ArrayLike, boxes: Sequence[Box], *, grow: float = 0.1) 
 
 def center_distances(source: Sequence[Box], followup: Sequence[Box]) -> NDArray[np.float64]:
     """(n, m) float64: bird's-eye distances between box centres."""
-    a = np.array([box.center[:2] for box in _as_boxes(source, "source")]).reshape(-1, 2)
-    b = np.array([box.center[:2] for box in _as_boxes(followup, "followup")]).reshape(-1, 2)
+    a = np.array([box.center[:2] for box in as_boxes(source, "source")]).reshape(-1, 2)
+    b = np.array([box.center[:2] for box in as_boxes(followup, "followup")]).reshape(-1, 2)
     return np.sqrt(((a[:, None, :] - b[None, :, :]) ** 2).sum(axis=2))
 
 
@@ -322,8 +335,8 @@ def bev_iou(source: Sequence[Box], followup: Sequence[Box]) -> NDArray[np.float6
     taken with the shoelace formula after sorting those points by angle. All pairs whose
     bounding circles overlap are computed in one vectorised pass.
     """
-    source = _as_boxes(source, "source")
-    followup = _as_boxes(followup, "followup")
+    source = as_boxes(source, "source")
+    followup = as_boxes(followup, "followup")
     iou = np.zeros((len(source), len(followup)))
     if not source or not followup:
         return iou

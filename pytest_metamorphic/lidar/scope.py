@@ -61,7 +61,13 @@ from pytest_metamorphic.core.relations import (
     equal,
     subset,
 )
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher, bev_iou, unmatched_twins
+from pytest_metamorphic.lidar.obstacles import (
+    Box,
+    IoUMatcher,
+    as_boxes,
+    bev_iou,
+    unmatched_twins,
+)
 
 __all__ = [
     "DEFAULT_SCOPE",
@@ -90,7 +96,7 @@ def footprint_overlap(boxes: Sequence[Box], roi: Any) -> NDArray[np.float64]:
     roi : ROI
         Anything with ``contains(xy, method=...) -> (n,) bool``.
     """
-    boxes = _as_boxes(boxes, "boxes")
+    boxes = as_boxes(boxes, "boxes")
     if not boxes:
         return np.empty(0)
     steps = (np.arange(_SAMPLES) + 0.5) / _SAMPLES - 0.5
@@ -159,14 +165,14 @@ class ObstacleScope:
 
     def judged(self, boxes: Sequence[Box], frame: Any) -> NDArray[np.bool_]:
         """(n,) bool: which of ``boxes`` (an output on ``frame``) this scope judges."""
-        boxes = _as_boxes(boxes, "output")
+        boxes = as_boxes(boxes, "output")
         if self.everything:
             return np.ones(len(boxes), dtype=bool)
         return footprint_overlap(boxes, self.roi(frame)) >= self.min_overlap
 
     def select(self, boxes: Sequence[Box], frame: Any) -> list[Box]:
         """The judged obstacles of ``boxes``, in their order."""
-        boxes = _as_boxes(boxes, "output")
+        boxes = as_boxes(boxes, "output")
         return [box for box, keep in zip(boxes, self.judged(boxes, frame), strict=True) if keep]
 
     def where(self, box: Box, frame: Any) -> str:
@@ -194,23 +200,6 @@ def as_scope(scope: Any) -> ObstacleScope:
     raise InvalidArgument(f"scope={scope!r} must be 'roi', 'all' or an ObstacleScope")
 
 
-def _as_boxes(value: Any, which: str) -> list[Box]:
-    if isinstance(value, (str, bytes)):
-        raise InvalidArgument(f"the {which} must be a list of Box, got {value!r}")
-    try:
-        boxes = list(value)
-    except TypeError:
-        raise InvalidArgument(f"the {which} must be a list of Box, got {value!r}") from None
-    for index, box in enumerate(boxes):
-        if not isinstance(box, Box):
-            raise InvalidArgument(
-                f"the {which}[{index}] is {box!r}; obstacle relations need "
-                "pytest_metamorphic.lidar.obstacles.Box items (see "
-                "pytest_metamorphic.lidar.detectors for converters)"
-            )
-    return boxes
-
-
 def _pieces_of(boxes: list[Box], boundary: list[Box]) -> NDArray[np.bool_]:
     """(len(boxes),) bool: which boxes overlap one of the ``boundary`` (unjudged) boxes."""
     if not boxes or not boundary:
@@ -233,8 +222,8 @@ class _Scoped(Relation):
     def _split(
         self, source_output: Any, followup_output: Any, context: CheckContext
     ) -> tuple[list[Box], list[Box], NDArray[np.bool_], NDArray[np.bool_]]:
-        source = _as_boxes(source_output, "source output")
-        followup = _as_boxes(followup_output, "follow-up output")
+        source = as_boxes(source_output, "source output")
+        followup = as_boxes(followup_output, "follow-up output")
         return (
             source,
             followup,

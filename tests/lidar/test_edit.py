@@ -13,6 +13,7 @@ from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject, box_gap, removal_candidates
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception import ReferencePerception
+from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.relations.lidar import lidar_relations, object_removal
 from tests.core.lidar_cases import kitti, street
@@ -83,3 +84,27 @@ def test_nearby_and_shadowed_obstacles_are_exempt() -> None:
     with pytest.raises(InvalidArgument, match="clearance"):
         object_removal(clearance=float("nan"))
     assert object_removal().name in {r.name for r in lidar_relations()}
+
+
+def test_a_context_clutter_filter_drops_fragments_once_the_car_beside_them_is_removed() -> None:
+    """``road_user_context`` keeps small clusters only near a road user. KITTI sweep 2: the
+    car at (33.8, -3.2) taken out, a 19-point object 7 m from it is lost, so the relation
+    fails; the reference keeps it."""
+    frame = kitti(2)
+    faulty = mutant("road_user_context")
+    source = faulty(frame)
+    reference = ReferencePerception()(frame)
+    # What it drops: objects of fewer than 20 points with no road user within 10 m.
+    anchors = [b for b in reference if b.label != "unknown" and b.points >= 20]
+    for box in set(reference) - set(source):
+        assert box.points < 20
+        assert all(math.dist(box.center[:2], a.center[:2]) > 10 for a in anchors)
+    assert set(source) <= set(reference)
+    car = next(b for b in removal_candidates(frame) if math.dist(b.center[:2], (33.8, -3.2)) < 1)
+    removal = RemoveObject(car)
+    followup = removal.apply(frame)
+    context = CheckContext(frame, followup, removal.params(), 0)
+    verdict = object_removal().relation.check(source, faulty(followup), context)
+    assert not verdict.holds and "unknown at (31.2, 3.8)" in verdict.explanation
+    system = ReferencePerception()
+    assert object_removal().relation.check(reference, system(followup), context)

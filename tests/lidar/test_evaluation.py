@@ -75,7 +75,7 @@ def test_bad_arguments_are_named() -> None:
         evaluate([], [], labels=["truck"])
     with pytest.raises(InvalidArgument, match="not a string"):
         evaluate([], [], labels="car")
-    with pytest.raises(InvalidArgument, match=r"truth\[0\] is tuple"):
+    with pytest.raises(InvalidArgument, match=r"truth\[0\] is \(1, 2\)"):
         evaluate([], [(1, 2)])
     with pytest.raises(InvalidArgument, match="matcher"):
         evaluate([], [], matcher=lambda a, b: True)

@@ -150,7 +150,7 @@ def test_matchers_follow_the_protocol_and_validate():
             CenterDistanceMatcher(max_distance=bad)
     with pytest.raises(InvalidArgument, match="same_label"):
         IoUMatcher(same_label="yes")
-    with pytest.raises(InvalidArgument, match=r"source\[0\] is str"):
+    with pytest.raises(InvalidArgument, match=r"source\[0\] is 'car'"):
         IoUMatcher().pairwise(["car"], [])
 
 

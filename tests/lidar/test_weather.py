@@ -10,6 +10,7 @@ import pytest
 
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext
+from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
@@ -117,6 +118,28 @@ def test_a_clear_weather_speckle_filter_loses_a_car_in_fog_and_only_there() -> N
         faulty(frame), faulty(mirrored), CheckContext(frame, mirrored, mirror.params(), 0)
     )
     assert holds
+
+
+def test_a_blockage_monitor_blinds_the_detector_in_fog_and_only_there() -> None:
+    """``blinded_sensor_monitor`` withholds everything when returns come from within 2.5 m
+    all round. Clear sweeps (KITTI's walls and kerbs close by included) and their doubled
+    points never trip it; droplet echoes of fog at 200 m visibility do, while a car 26 m
+    away is still seen plainly, so the weather relation fails and the reference holds."""
+    faulty = mutant("blinded_sensor_monitor")
+    reference = ReferencePerception()
+    for frame in [street(), *(kitti(index) for index in range(6))]:
+        assert faulty(frame) == reference(frame)
+    frame = kitti(0)  # its 1,005 returns within 2.5 m light 12 of the 36 sectors
+    doubled = frame.with_cloud(PointCloud.concatenate([frame.cloud, frame.cloud]))
+    assert faulty(doubled) == reference(frame)
+    frame = street()
+    weather = Weather(200.0, "fog", seed=0)
+    followup = weather.apply(frame)
+    context = CheckContext(frame, followup, weather.params(), 0)
+    assert faulty(followup) == []
+    verdict = adverse_weather().relation.check(faulty(frame), faulty(followup), context)
+    assert not verdict.holds and "car at (25.9, 2.5) lost" in verdict.explanation
+    assert adverse_weather().relation.check(reference(frame), reference(followup), context)
 
 
 def test_obstacles_beyond_the_visibility_are_not_judged() -> None:

@@ -33,6 +33,11 @@ short_range_gate            returns beyond 40 m dropped (a range gate carried ov
                             shorter-range sensor)
 repeated_range_filter       returns whose range repeats a neighbouring firing's dropped as
                             dual-return echoes (harmless at 2 mm range steps)
+road_user_context           clusters of fewer than 20 points kept only within 10 m of a car,
+                            pedestrian or cyclist (a clutter filter that keeps road users'
+                            fragments)
+blinded_sensor_monitor      nothing reported when returns within 2.5 m of the sensor come from
+                            two thirds of the azimuth sectors (a blockage monitor)
 ==========================  =================================================================
 """
 
@@ -377,6 +382,67 @@ class ShortRangeGate(ReferencePerception):
         return points[np.hypot(points[:, 0], points[:, 1]) <= self.max_range]
 
 
+class RoadUserContext(ReferencePerception):
+    """Clusters of fewer than ``min_points`` distinct points are kept only when a car,
+    pedestrian or cyclist (of at least ``min_points``) has its centre within ``radius``
+    metres of theirs.
+
+    A clutter filter: a few points on their own are taken for spray, leaves or litter,
+    while next to a road user they are kept as part of it (a mirror, a bag, a wheel seen
+    apart). Each small object's fate then hangs on another object up to 10 m away: when a
+    parked car leaves, the fragments beside it (a post, a far pedestrian's few returns) are
+    dropped although nothing about them changed. Faults and weather judge only obstacles
+    of >= 30 points, reordering, repeats and rigid motions keep every neighbour, noise
+    outside the ROI adds none: taking an object out of the sweep shows it.
+    """
+
+    name = "road_user_context"
+    min_points = 20
+    radius = 10.0
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        # The filter counts distinct returns: a return the driver sent twice is one.
+        return np.unique(points, axis=0)
+
+    def build_boxes(
+        self, points: NDArray[np.float32], ground_z: NDArray[np.float32], clusters: Clusters
+    ) -> list[Box]:
+        boxes = super().build_boxes(points, ground_z, clusters)
+        anchors = np.array(
+            [b.center[:2] for b in boxes if b.label != "unknown" and b.points >= self.min_points]
+        ).reshape(-1, 2)
+
+        def supported(box: Box) -> bool:
+            distance = np.hypot(*(anchors - np.asarray(box.center[:2])).T)
+            return bool((distance <= self.radius).any())
+
+        return [box for box in boxes if box.points >= self.min_points or supported(box)]
+
+
+class BlindedSensorMonitor(ReferencePerception):
+    """Nothing is reported when the sensor looks blinded: returns closer than ``near``
+    metres in at least ``min_sectors`` of the 36 azimuth sectors of 10 degrees (a sector
+    counts with ``min_returns`` distinct returns).
+
+    A blockage monitor (mud, snow or a bag on the window give returns at the cover all
+    round) whose output is withheld while it fires. Clear KITTI sweeps light at most 12
+    sectors (a wall or a kerb close by); droplet echoes in fog of 200 m visibility or rain
+    of 100 m light nearly all 36, while cars 20 m away are still seen plainly. Nothing but
+    weather puts returns next to the sensor all round.
+    """
+
+    name = "blinded_sensor_monitor"
+    near = 2.5
+    min_returns = 3
+    min_sectors = 24
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        close = np.unique(points[np.linalg.norm(points[:, :3], axis=1) < self.near], axis=0)
+        sector = np.floor(np.degrees(np.arctan2(close[:, 1], close[:, 0])) / 10.0) % 36
+        lit = np.bincount(sector.astype(np.intp), minlength=36) >= self.min_returns
+        return points[:0] if lit.sum() >= self.min_sectors else points
+
+
 def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
     """(n,) int64: one key per voxel of edge ``size`` (cells packed into one integer)."""
     cells = np.floor(coordinates / np.float32(size)).astype(np.int64)
@@ -408,6 +474,8 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         IntensityFloor,
         RepeatedRangeFilter,
         ShortRangeGate,
+        RoadUserContext,
+        BlindedSensorMonitor,
     )
 }
 

@@ -7,7 +7,6 @@ from typing import Any
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
 
 # An empty frame: strategies built on it validate a relation's arguments when it is made.
 _PROBE = Frame(PointCloud.empty(), source="argument check")
@@ -26,9 +25,3 @@ def _check_size(value: Any, name: str, *, allow_none: bool = False) -> None:
         return
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise InvalidArgument(f"{name}={value!r} must be a positive int")
-
-
-def _as_box(value: Any, which: str) -> Box:
-    if not isinstance(value, Box):
-        raise InvalidArgument(f"rotation relations need Box outputs; a {which} item is {value!r}")
-    return value

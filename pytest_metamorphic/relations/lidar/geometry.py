@@ -3,22 +3,23 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import Any, Literal
 
-import numpy as np
 from hypothesis import strategies as st
-from numpy.typing import NDArray
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.core.matching import one_to_one
-from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
-from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.equivariance import (
+    TURN_TOLERANCES,
+    MirroredObstacles,
+    MovedObstacles,
+    RotatedObstacles,
+    ShiftedObstacles,
+)
 from pytest_metamorphic.lidar.perturb import RotateAboutSensor
-from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.scope import ScopeLike
 from pytest_metamorphic.lidar.symmetry import MirrorAcrossX, ShiftAlongX
-from pytest_metamorphic.relations.lidar._common import _as_box, _check_size, _frame
+from pytest_metamorphic.relations.lidar._common import _check_size, _frame
 
 __all__ = [
     "MirroredObstacles",
@@ -29,203 +30,6 @@ __all__ = [
     "rotation_equivariance",
     "translation_equivariance",
 ]
-
-
-class MovedObstacles(Relation):
-    """``O'`` is ``O`` moved as the scene was (turned, mirrored), within tolerances.
-
-    Compared are the *clear* obstacles of either side: labelled car, pedestrian or
-    cyclist, with at least ``min_points`` points, and whose footprint circle stays more
-    than ``boundary_margin`` metres from the ROI's edges (the moved ROI is rasterised
-    afresh, as Apollo does every frame, so cells along its edges differ). Each clear
-    source obstacle, moved, needs its own follow-up obstacle (of the same label when
-    ``same_label``) with the centre within ``center_tolerance``, length and width each
-    within ``size_tolerance`` and, for elongated boxes (length - width > 0.3 m), the heading within
-    ``yaw_tolerance`` degrees modulo 180 (a box's front is not defined); and each clear
-    follow-up obstacle needs its own such source obstacle. With a ``scope``
-    (:mod:`pytest_metamorphic.lidar.scope`, default the ROI) only obstacles it judges are
-    clear; others are counted in ``unjudged`` details, as information.
-    """
-
-    def __init__(
-        self,
-        *,
-        center_tolerance: float,
-        size_tolerance: float,
-        yaw_tolerance: float,
-        min_points: int,
-        boundary_margin: float,
-        same_label: bool = True,
-        scope: ScopeLike = "roi",
-    ) -> None:
-        self.scope: ObstacleScope = as_scope(scope)
-        if not isinstance(same_label, bool):
-            raise InvalidArgument(f"same_label={same_label!r} must be True or False")
-        for label, value in (
-            ("center_tolerance", center_tolerance),
-            ("size_tolerance", size_tolerance),
-            ("yaw_tolerance", yaw_tolerance),
-            ("boundary_margin", boundary_margin),
-        ):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
-                raise InvalidArgument(f"{label}={value!r} must be a number >= 0")
-        if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 0:
-            raise InvalidArgument(f"min_points={min_points!r} must be an int >= 0")
-        self.center_tolerance = float(center_tolerance)
-        self.size_tolerance = float(size_tolerance)
-        self.yaw_tolerance = math.radians(yaw_tolerance)
-        self.min_points = min_points
-        self.boundary_margin = float(boundary_margin)
-        self.same_label = same_label
-        self.name = (
-            f"{self.moved}(centre<={center_tolerance:g} m, size<={size_tolerance:g} m, "
-            f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''}; "
-            f"{self.scope.describe()})"
-        )
-
-    moved = "moved"
-
-    def move(self, box: Box, context: CheckContext) -> Box:
-        """Where ``box`` should be in the follow-up."""
-        raise NotImplementedError
-
-    def move_details(self, context: CheckContext) -> dict[str, Any]:
-        return {}
-
-    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
-        moved = self.move_details(context)  # validates the follow-up's parameters first
-        expected = [self.move(_as_box(box, "source"), context) for box in source_output]
-        found = [_as_box(box, "follow-up") for box in followup_output]
-        roi = getattr(context.followup_input, "roi", None)
-        # Judged in the follow-up's frame: the turned source boxes and the found ones.
-        judged_expected = self.scope.judged(expected, context.followup_input)
-        judged_found = self.scope.judged(found, context.followup_input)
-        missing = self._unmatched(expected, self._clear(expected, roi, judged_expected), found)
-        extra = self._unmatched(found, self._clear(found, roi, judged_found), expected)
-        details = {
-            **moved,
-            "missing": [],
-            "extra": [],
-            "scope": self.scope.describe(),
-            "unjudged_changes": self._unjudged_changes(
-                expected, found, judged_expected, judged_found
-            ),
-        }
-        if not missing and not extra:
-            return Verdict(True, self.name, details=details)
-        lines = [f"source {expected[i].describe()} ({self.moved}) has no match" for i in missing]
-        lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
-        details["missing"] = [expected[i].describe() for i in missing]
-        details["extra"] = [found[j].describe() for j in extra]
-        return Verdict(False, self.name, "; ".join(lines[:10]), details)
-
-    def _unjudged_changes(
-        self,
-        expected: list[Box],
-        found: list[Box],
-        judged_expected: NDArray[np.bool_],
-        judged_found: NDArray[np.bool_],
-    ) -> int:
-        """Unjudged obstacles, on either side, without a partner within the tolerances."""
-        outside = [i for i, judged in enumerate(judged_expected) if not judged]
-        outside2 = [j for j, judged in enumerate(judged_found) if not judged]
-        return len(self._unmatched(expected, outside, found)) + len(
-            self._unmatched(found, outside2, expected)
-        )
-
-    def _clear(self, boxes: Sequence[Box], roi: Any, judged: NDArray[np.bool_]) -> list[int]:
-        chosen = []
-        for index, box in enumerate(boxes):
-            if not judged[index]:
-                continue
-            if box.label == "unknown" or (box.points or 0) < self.min_points:
-                continue
-            if roi is not None and self.boundary_margin > 0:
-                reach = math.hypot(box.size[0], box.size[1]) / 2.0 + self.boundary_margin
-                if roi.boundary_distance([box.center[:2]])[0] <= reach:
-                    continue
-            chosen.append(index)
-        return chosen
-
-    def _unmatched(
-        self, boxes: Sequence[Box], chosen: list[int], others: Sequence[Box]
-    ) -> list[int]:
-        """Indices in ``chosen`` (into ``boxes``) left without a partner among ``others``."""
-        if not chosen:
-            return []
-        compatible = np.zeros((len(chosen), len(others)), dtype=bool)
-        cost = np.zeros(compatible.shape)
-        for row, index in enumerate(chosen):
-            for col, other in enumerate(others):
-                distance, ok = self._compatible(boxes[index], other)
-                compatible[row, col], cost[row, col] = ok, distance
-        pairs = one_to_one(compatible, cost)
-        matched = {chosen[row] for row, _ in pairs}
-        return [index for index in chosen if index not in matched]
-
-    def _compatible(self, a: Box, b: Box) -> tuple[float, bool]:
-        distance = a.center_distance(b)
-        if (self.same_label and a.label != b.label) or distance > self.center_tolerance:
-            return distance, False
-        if abs(a.size[0] - b.size[0]) > self.size_tolerance:
-            return distance, False
-        if abs(a.size[1] - b.size[1]) > self.size_tolerance:
-            return distance, False
-        elongated = a.size[0] - a.size[1] > 0.3 and b.size[0] - b.size[1] > 0.3
-        turned = abs(math.remainder(a.yaw - b.yaw, math.pi))
-        return distance, not (elongated and turned > self.yaw_tolerance)
-
-
-class RotatedObstacles(MovedObstacles):
-    """``O'`` is ``O`` turned by the follow-up's ``theta_deg`` about the sensor (see
-    :class:`MovedObstacles` for what is compared and the tolerances)."""
-
-    moved = "turned"
-
-    def _theta(self, context: CheckContext) -> float:
-        if "theta_deg" not in context.params:
-            raise InvalidArgument(
-                f"{self.name} needs the follow-up's rotation in params['theta_deg'] "
-                "(use rotation_equivariance() or RotateAboutSensor.params())"
-            )
-        return math.radians(float(context.params["theta_deg"]))
-
-    def move(self, box: Box, context: CheckContext) -> Box:
-        return box.rotated(self._theta(context))
-
-    def move_details(self, context: CheckContext) -> dict[str, Any]:
-        self._theta(context)
-        return {"theta_deg": context.params["theta_deg"]}
-
-
-class MirroredObstacles(MovedObstacles):
-    """``O'`` is ``O`` reflected in the sensor's x axis (see :class:`MovedObstacles`)."""
-
-    moved = "mirrored"
-
-    def move(self, box: Box, context: CheckContext) -> Box:
-        return box.mirrored()
-
-
-class ShiftedObstacles(MovedObstacles):
-    """``O'`` is ``O`` shifted by the follow-up's ``shift_x_m`` along x (see
-    :class:`MovedObstacles`)."""
-
-    moved = "shifted"
-
-    def _dx(self, context: CheckContext) -> float:
-        if "shift_x_m" not in context.params:
-            raise InvalidArgument(
-                f"{self.name} needs the follow-up's shift in params['shift_x_m'] "
-                "(use translation_equivariance() or ShiftAlongX.params())"
-            )
-        return float(context.params["shift_x_m"])
-
-    def move(self, box: Box, context: CheckContext) -> Box:
-        return box.translated(self._dx(context), 0.0)
-
-    def move_details(self, context: CheckContext) -> dict[str, Any]:
-        return {"shift_x_m": self._dx(context)}
 
 
 def rotation_equivariance(
@@ -269,7 +73,7 @@ def rotation_equivariance(
     if angles not in ("quarter_turns", "any"):
         raise InvalidArgument(f"angles={angles!r} must be 'quarter_turns' or 'any'")
     quarter = angles == "quarter_turns"
-    defaults = (0.02, 0.02, 1.0, 0, 0.5) if quarter else (0.8, 0.8, 20.0, 30, 1.0)
+    defaults = TURN_TOLERANCES[angles]
     given = (center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin)
     values = [d if g is None else g for g, d in zip(given, defaults, strict=True)]
     relation = RotatedObstacles(
