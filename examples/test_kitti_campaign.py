@@ -17,7 +17,12 @@ from pathlib import Path
 import pytest
 
 from pytest_metamorphic.core.campaign import campaign_test
-from pytest_metamorphic.lidar.campaign import edit_campaign, fault_campaign, mr1_campaign
+from pytest_metamorphic.lidar.campaign import (
+    edit_campaign,
+    fault_campaign,
+    mr1_campaign,
+    symmetry_campaign,
+)
 from pytest_metamorphic.lidar.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
@@ -108,4 +113,45 @@ test_kitti_insertion_reference = campaign_test(
         followups=10,
     ),
     shards=len(frames),
+)  # fmt: skip
+
+# Taking the k-th nearest object out: the reference keeps every other obstacle; a clutter
+# filter that keeps small clusters only near a road user loses them once the car leaves.
+context = mutant("road_user_context")
+
+
+def context_system(frame: Frame) -> list[Box]:
+    return context(frame.cloud, frame.roi)
+
+
+test_kitti_removal_reference = campaign_test(
+    edit_campaign(reference_system, edit="removal", name="removal KITTI reference", frames=frames)
+)
+test_kitti_removal_road_user_context = campaign_test(
+    edit_campaign(
+        context_system, edit="removal", name="removal KITTI mutant road_user_context",
+        frames=frames,
+    )
+)  # fmt: skip
+
+# Rigid changes: quarter turns and the mirror (one follow-up per sweep and level: they are
+# deterministic). Boxes reported in a frame turned 2 degrees (a wrong yaw extrinsic) turn
+# with every rotation, but fail the mirror.
+turned = mutant("turned_output_frame")
+
+
+def turned_system(frame: Frame) -> list[Box]:
+    return turned(frame.cloud, frame.roi)
+
+
+test_kitti_rotation_reference = campaign_test(
+    symmetry_campaign(
+        reference_system, symmetry="rotation", name="rotation KITTI reference", frames=frames
+    )
+)
+test_kitti_mirror_turned_output_frame = campaign_test(
+    symmetry_campaign(
+        turned_system, symmetry="mirror", name="mirror KITTI mutant turned_output_frame",
+        frames=frames,
+    )
 )  # fmt: skip

@@ -12,11 +12,13 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.campaign import (
     EDIT_SEVERITIES,
     FAULT_SEVERITIES,
+    SYMMETRY_SEVERITIES,
     edit_campaign,
     fault_campaign,
     mr1_campaign,
     noise_followup,
     recorded_frames,
+    symmetry_campaign,
     synthetic_frames,
 )
 from pytest_metamorphic.lidar.evaluation import kitti_label_region
@@ -184,3 +186,39 @@ def test_edit_campaigns_rate_insertion_per_range_and_removal_per_object() -> Non
         edit_campaign(reference_system, edit="scale", name="x")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="severities"):
         edit_campaign(reference_system, edit="removal", name="x", severities=(0,))
+
+
+def test_symmetry_campaigns_rate_turns_the_mirror_and_shifts() -> None:
+    """Quarter turns and the mirror over the KITTI sweeps: the reference holds; boxes
+    reported in a turned frame fail the mirror on every sweep. Turns by other angles (on
+    rendered streets) use the loose tolerances and still catch axis-aligned boxes.
+    Translation, which the reference does not claim, fails on some shifted sweeps."""
+    catalog = FrameCatalog(
+        shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    )
+    for symmetry in ("rotation", "mirror"):
+        result = run_campaign(
+            symmetry_campaign(reference_system, symmetry=symmetry, name=symmetry, frames=catalog)
+        )
+        assert sorted(result.sizes) == sorted(SYMMETRY_SEVERITIES[symmetry])
+        assert all(c.pairs == 6 and c.violations == 0 for c in result.sizes.values())
+    turned = symmetry_campaign(
+        system_of("turned_output_frame"), symmetry="mirror", name="turned", frames=catalog
+    )
+    assert run_campaign(turned).sizes[1].violations == 6
+    options = {"symmetry": "rotation", "sources": 4, "severities": (30,)}
+    assert (
+        run_campaign(symmetry_campaign(reference_system, name="r", **options)).sizes[30].violations
+        == 0
+    )
+    boxes = symmetry_campaign(system_of("axis_aligned_boxes"), name="a", **options)
+    assert run_campaign(boxes).sizes[30].violations >= 2
+    shifted = run_campaign(
+        symmetry_campaign(reference_system, symmetry="translation", name="t", frames=catalog)
+    )
+    assert sum(c.pairs for c in shifted.sizes.values()) == 24
+    assert shifted.sizes[5].violations + shifted.sizes[10].violations > 0
+    with pytest.raises(InvalidArgument, match="symmetry="):
+        symmetry_campaign(reference_system, symmetry="scale", name="x")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="severities"):
+        symmetry_campaign(reference_system, symmetry="mirror", name="x", severities=(2,))

@@ -1,0 +1,141 @@
+"""What every LiDAR campaign shares: where its source frames come from, how its
+system, severities and judged obstacles are checked."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.layout import random_scene
+from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.scene import render
+from pytest_metamorphic.lidar.scope import ObstacleScope
+
+__all__ = [
+    "DEFAULT_SYNTHETIC_SOURCES",
+    "SourceFn",
+    "box_label",
+    "recorded_frames",
+    "synthetic_frames",
+]
+
+SourceFn = Callable[[np.random.Generator, int], Frame]
+DEFAULT_SYNTHETIC_SOURCES = 1000  # the paper's frame count
+
+
+def synthetic_frames(*, beams: BeamLayout = HDL64E, **scene_options: Any) -> SourceFn:
+    """Campaign sources: an independent random street scene per source, rendered.
+
+    ``scene_options`` go to :func:`~pytest_metamorphic.lidar.layout.random_scene` (road
+    kinds, obstacle counts and classes, clutter). The render's range noise is seeded from
+    the source's own generator, so source ``i`` is the same frame in every run.
+    """
+    if not isinstance(beams, BeamLayout):
+        raise InvalidArgument(f"beams must be a BeamLayout, got {type(beams).__name__}")
+    # Validate the options now rather than in the first source.
+    random_scene(np.random.default_rng(0), **scene_options)
+
+    def source(rng: np.random.Generator, index: int) -> Frame:
+        scene = random_scene(rng, name=f"random-{index}", **scene_options)
+        return render(scene, beams=beams, seed=int(rng.integers(2**31)))
+
+    return source
+
+
+def recorded_frames(catalog: FrameCatalog) -> SourceFn:
+    """Campaign sources: frame ``i`` of a :class:`FrameCatalog` for source ``i``.
+
+    The frames need an ROI (``FrameCatalog(..., roi=...)``). A campaign over recorded
+    frames has at most ``len(catalog)`` sources (the default).
+    """
+    if not isinstance(catalog, FrameCatalog):
+        raise InvalidArgument(f"catalog must be a FrameCatalog, got {type(catalog).__name__}")
+    if catalog.roi is None:
+        raise InvalidArgument(
+            f"{catalog!r} attaches no ROI; MR1 needs one (FrameCatalog(..., roi=...))"
+        )
+
+    return _Recorded(catalog)
+
+
+class _Recorded:
+    """Source ``i`` is frame ``i``; ``len()`` caps the campaign's source count."""
+
+    def __init__(self, catalog: FrameCatalog) -> None:
+        self.catalog = catalog
+
+    def __call__(self, rng: np.random.Generator, index: int) -> Frame:
+        return self.catalog.load(index)
+
+    def __len__(self) -> int:
+        return len(self.catalog)
+
+    def __repr__(self) -> str:
+        return f"recorded_frames({self.catalog!r})"
+
+
+def box_label(box: Box) -> str:
+    """Per-class breakdown key: the obstacle's label."""
+    if not isinstance(box, Box):
+        raise InvalidArgument(
+            f"the system under test returned {box!r} in its obstacle list; an MR1 "
+            "campaign's system must return a list of Box (pytest_metamorphic.lidar.obstacles)"
+        )
+    return box.label
+
+
+def _check_system(system: Any) -> None:
+    if not callable(system):
+        raise InvalidArgument(f"system={system!r} must be callable (Frame -> list of Box)")
+
+
+def _frame_source(frames: Any, sources: int | None) -> tuple[SourceFn, int]:
+    """The campaign's source function and source count, from the ``frames`` argument."""
+    if frames is None:
+        source = synthetic_frames()
+    elif isinstance(frames, FrameCatalog):
+        source = recorded_frames(frames)
+    elif isinstance(frames, (str, os.PathLike)):
+        source = recorded_frames(FrameCatalog(frames))
+    elif callable(frames):
+        source = frames
+    else:
+        raise InvalidArgument(
+            f"frames={frames!r} must be None, a source function, a FrameCatalog or a path"
+        )
+    available = len(source) if hasattr(source, "__len__") else None
+    if sources is None:
+        sources = DEFAULT_SYNTHETIC_SOURCES if available is None else available
+    elif available is not None and isinstance(sources, int) and sources > available:
+        raise InvalidArgument(f"sources={sources} but the recording holds {available} frames")
+    return source, sources
+
+
+def _severities(
+    severities: Sequence[int] | None, default: tuple[int, ...], limit: int
+) -> tuple[int, ...]:
+    levels = tuple(default if severities is None else severities)
+    if not levels or not all(
+        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= limit for v in levels
+    ):
+        raise InvalidArgument(f"severities={severities!r} must be ints in [1, {limit}]")
+    return levels
+
+
+class _Judged:
+    """``counted`` of a scoped MR1 campaign: the obstacles the scope judges (picklable)."""
+
+    def __init__(self, scope: ObstacleScope) -> None:
+        self.scope = scope
+
+    def __call__(self, boxes: Sequence[Box], frame: Frame) -> list[Box]:
+        for box in boxes:
+            box_label(box)  # names a non-Box item the way the campaign's own check does
+        return self.scope.select(boxes, frame)
