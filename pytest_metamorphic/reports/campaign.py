@@ -58,9 +58,14 @@ def _scoped(result: CampaignResult) -> bool:
     return any(counts.unjudged_changes for counts in result.sizes.values())
 
 
+def size_label(result: CampaignResult) -> str:
+    """What the campaign's sizes are (``"n"`` noise points unless it says otherwise)."""
+    return str(result.header.get("size_label", "n"))
+
+
 def _header(result: CampaignResult) -> list[str]:
     return [
-        "n",
+        size_label(result),
         "pairs",
         *(_HEADINGS[name] for name in _OUTCOMES),
         f"violations of {result.header['relation']}",
@@ -145,7 +150,8 @@ def format_table(result: CampaignResult) -> list[str]:
     categories = _category_rows(result)
     if categories:
         lines.append("per category (pairs whose count of that category fell / stayed / rose):")
-        lines.extend(_align([["n", "category", "pairs", "fewer", "same", "more"], *categories]))
+        heading = [size_label(result), "category", "pairs", "fewer", "same", "more"]
+        lines.extend(_align([heading, *categories]))
     if _scoped(result):
         lines.append(_SCOPE_NOTE)
     if result.source_crashes:
@@ -154,13 +160,14 @@ def format_table(result: CampaignResult) -> list[str]:
     if result.examples:
         shown = result.examples[:_SHOWN_EXAMPLES]
         lines.append(f"first violations ({len(shown)} of the {len(result.examples)} kept):")
-        lines.extend(f"  {_example_line(example)}" for example in shown)
+        lines.extend(f"  {_example_line(example, size_label(result))}" for example in shown)
     return lines
 
 
-def _example_line(example: dict) -> str:
+def _example_line(example: dict, label: str) -> str:
     return (
-        f"source {example['source']}, n={example['size']}, follow-up {example['followup']}: "
+        f"source {example['source']}, {label}={example['size']}, "
+        f"follow-up {example['followup']}: "
         f"{example.get('explanation', '')}"
     )
 
@@ -180,12 +187,16 @@ def to_markdown(result: CampaignResult) -> str:
     if categories:
         parts += ["", "## Per category", ""]
         parts.append(
-            _markdown_table(["n", "category", "pairs", "fewer", "same", "more"], categories)
+            _markdown_table(
+                [size_label(result), "category", "pairs", "fewer", "same", "more"], categories
+            )
         )
     parts += ["", describe_execution(result.execution)]
     if result.examples:
         parts += ["", "## First violations", ""]
-        parts.extend(f"- {_example_line(example)}" for example in result.examples)
+        parts.extend(
+            f"- {_example_line(example, size_label(result))}" for example in result.examples
+        )
     return "\n".join(parts) + "\n"
 
 
@@ -278,7 +289,11 @@ def write_chart(result: CampaignResult, path: Path) -> None:
             va="top",
             fontsize=9,
         )
-    axes.set_xlabel("noise points n, per category", labelpad=22)
+    label = size_label(result)
+    axes.set_xlabel(
+        "noise points n, per category" if label == "n" else f"{label}, per category",
+        labelpad=22,
+    )
     axes.set_ylabel("% of source/follow-up pairs")
     axes.set_ylim(0, 100)
     title = f"{result.header['campaign']}: objects per category, O vs O'"

@@ -44,6 +44,9 @@ class Campaign:
     counted : callable(output, input) -> collection, optional
         The part of an output the table counts (|O| vs |O'|, categories): for a scoped
         relation, what it judges (e.g. obstacles inside the ROI). Default: all of it.
+    size_label : str
+        What a size is, as the reports name it (default ``"n"``, the paper's noise points;
+        e.g. ``"dead lasers"``, ``"visibility m"``).
     """
 
     name: str
@@ -57,6 +60,7 @@ class Campaign:
     seed: int = 0
     category: Callable[[Any], str] | None = None
     counted: Callable[[Any, Any], Any] | None = None
+    size_label: str = "n"
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -68,6 +72,8 @@ class Campaign:
             value = getattr(self, argument)
             if value is not None and not callable(value):
                 raise InvalidArgument(f"{argument}={value!r} must be callable or None")
+        if not isinstance(self.size_label, str) or not self.size_label.strip():
+            raise InvalidArgument(f"size_label={self.size_label!r} must be a non-empty string")
         if not isinstance(self.relation, Relation):
             raise InvalidArgument(f"relation={self.relation!r} must be a Relation")
         sizes = tuple(self.sizes)
@@ -91,6 +97,8 @@ class Campaign:
             "sources": self.sources,
             "sizes": list(self.sizes),
             "followups": self.followups,
+            # Only when it says more than "n": logs written before it existed still resume.
+            **({"size_label": self.size_label} if self.size_label != "n" else {}),
         }
 
     def source_rng(self, index: int) -> np.random.Generator:

@@ -79,6 +79,7 @@ def removal_followup(frame: Frame, severity: int, rng: np.random.Generator) -> F
 
 
 _EDIT_FOLLOWUPS = {"insertion": insertion_followup, "removal": removal_followup}
+_SEVERITY_LABELS = {"insertion": "range %", "removal": "k-th nearest"}
 
 
 def edit_campaign(
@@ -137,4 +138,5 @@ def edit_campaign(
         seed=seed,
         category=box_label,
         counted=None if chosen.everything else _Judged(chosen),
+        size_label=_SEVERITY_LABELS[edit],
     )

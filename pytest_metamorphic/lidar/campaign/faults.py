@@ -99,6 +99,15 @@ def quantized_followup(frame: Frame, severity: int, rng: np.random.Generator) ->
     return Followup(fault.apply(frame), params=fault.params())
 
 
+#: How the reports name each fault's severity.
+_SEVERITY_LABELS = {
+    "beam_loss": "dead lasers",
+    "packet_loss": "lost packets",
+    "fog": "visibility m",
+    "rain": "visibility m",
+    "quantization": "range step cm",
+}
+
 _FAULT_FOLLOWUPS = {
     "beam_loss": dead_beams_followup,
     "packet_loss": lost_packets_followup,
@@ -174,4 +183,5 @@ def fault_campaign(
         seed=seed,
         category=box_label,
         counted=None if chosen.everything else _Judged(chosen),
+        size_label=_SEVERITY_LABELS[fault],
     )

@@ -51,6 +51,7 @@ SYMMETRY_SEVERITIES: dict[str, tuple[int, ...]] = {
     "translation": (1, 2, 5, 10),
 }
 _SEVERITY_LIMITS = {"rotation": 359, "mirror": 1, "translation": 100}
+_SEVERITY_LABELS = {"rotation": "degrees", "mirror": "mirror", "translation": "shift m"}
 
 
 def turned_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
@@ -155,4 +156,5 @@ def symmetry_campaign(
         seed=seed,
         category=box_label,
         counted=None if chosen.everything else _Judged(chosen),
+        size_label=_SEVERITY_LABELS[symmetry],
     )

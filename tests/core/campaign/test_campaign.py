@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -170,6 +171,7 @@ def test_crashes_are_counted_not_fatal() -> None:
         ({"seed": -1}, "seed=-1 must be an int >= 0"),
         ({"name": ""}, "name='' must be a non-empty string"),
         ({"name": None}, "name=None must be a non-empty string"),
+        ({"size_label": " "}, "size_label=' ' must be a non-empty string"),
     ],
 )
 def test_bad_campaign_arguments(kwargs: dict, message: str) -> None:
@@ -211,6 +213,23 @@ def test_reports_table_markdown_json_and_chart(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     write_chart(result, tmp_path / "r.png")
     assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_reports_name_what_a_size_is(tmp_path: Path) -> None:
+    """A campaign whose sizes are not noise points says what they are, in the table, the
+    examples and the Markdown; the default "n" adds nothing to the log's header, so logs
+    written before the label existed still resume."""
+    from pytest_metamorphic.reports.campaign import format_table, write_markdown
+
+    assert "size_label" not in campaign(Lossy(), sources=4).header()
+    labelled = dataclasses.replace(campaign(Lossy(), sources=20), size_label="dead lasers")
+    assert labelled.header()["size_label"] == "dead lasers"
+    result = run_campaign(labelled)
+    lines = format_table(result)
+    assert lines[1].split()[:3] == ["dead", "lasers", "pairs"]
+    assert any(line.startswith("  source ") and "dead lasers=" in line for line in lines)
+    write_markdown(result, tmp_path / "r.md")
+    assert "| dead lasers | pairs |" in (tmp_path / "r.md").read_text()
 
 
 def test_partial_result_says_it_is_partial(tmp_path: Path) -> None:
