@@ -12,12 +12,18 @@ from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.perturbation import find_reducible
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.faults import DropAzimuthBlock, DropRings, QuantizeRange, derive_rings
+from pytest_metamorphic.lidar.faults import (
+    PACKET_DEGREES,
+    DropAzimuthBlock,
+    DropRings,
+    QuantizeRange,
+    derive_rings,
+)
 from pytest_metamorphic.lidar.hdl64 import HDL64E
 from pytest_metamorphic.lidar.perception import ReferencePerception
 from pytest_metamorphic.lidar.perception.mutants import mutant
 from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
-from pytest_metamorphic.relations.lidar import range_quantization
+from pytest_metamorphic.relations.lidar import packet_loss, range_quantization
 from tests.core.lidar_cases import kitti, street
 
 
@@ -156,3 +162,22 @@ def test_a_repeated_range_filter_eats_a_car_once_ranges_come_in_10_cm_steps() ->
     assert not verdict.holds and "car at (25.9, 2.5) lost" in verdict.explanation
     doubled = frame.with_cloud(PointCloud.concatenate([frame.cloud, frame.cloud[::-1]]))
     assert faulty(doubled) == faulty(frame)
+
+
+def test_a_sweep_seam_filter_drops_the_car_a_lost_packet_cuts_and_only_then() -> None:
+    """``sweep_seam_filter`` takes a gap in the ROI's bearings for the sweep's boundary.
+    A complete sweep has none (nor with three dead lasers); one lost packet through the
+    street's first car drops it although nearly all of its points are left, so the
+    packet-loss relation fails, and the reference holds."""
+    faulty, reference = mutant("sweep_seam_filter"), ReferencePerception()
+    frame = street()
+    assert faulty(frame) == reference(frame)
+    dead = DropRings((10, 20, 30)).apply(frame)
+    assert faulty(dead) == reference(dead)
+    bearing = math.atan2(-2.5, 12.0)  # the car at (12.0, -2.5)
+    fault = DropAzimuthBlock(bearing, math.radians(PACKET_DEGREES))
+    followup = fault.apply(frame)
+    context = CheckContext(frame, followup, fault.params(), 0)
+    verdict = packet_loss().relation.check(faulty(frame), faulty(followup), context)
+    assert not verdict.holds and "car at (12.0, -2.5) lost" in verdict.explanation
+    assert packet_loss().relation.check(reference(frame), reference(followup), context)

@@ -38,12 +38,16 @@ road_user_context           clusters of fewer than 20 points kept only within 10
                             fragments)
 blinded_sensor_monitor      nothing reported when returns within 2.5 m of the sensor come from
                             two thirds of the azimuth sectors (a blockage monitor)
+sweep_seam_filter           obstacles next to a gap of > 0.5 degrees in the ROI's azimuths
+                            dropped as cut by the sweep's boundary
 ==========================  =================================================================
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,7 +58,12 @@ from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Clusters, cluster_points
 from pytest_metamorphic.lidar.perception.ground import ground_heights
 from pytest_metamorphic.lidar.perception.minbox import MinBox
-from pytest_metamorphic.lidar.perception.pipeline import PerceptionParams, ReferencePerception
+from pytest_metamorphic.lidar.perception.pipeline import (
+    PerceptionParams,
+    ReferencePerception,
+    Stages,
+    _as_input,
+)
 
 __all__ = ["MUTANTS", "mutant"]
 
@@ -443,6 +452,56 @@ class BlindedSensorMonitor(ReferencePerception):
         return points[:0] if lit.sum() >= self.min_sectors else points
 
 
+class SweepSeamFilter(ReferencePerception):
+    """Obstacles whose bearings come within ``margin`` degrees of a gap of more than
+    ``min_gap`` degrees between the ROI's returns are dropped.
+
+    A driver assembles a sweep from packets and takes a gap in azimuth for the sweep's
+    boundary; an object next to it is taken for one cut in two (its other half arrives
+    with the next sweep) and dropped. A complete sweep has no such gap inside the ROI (the
+    KITTI sweeps' largest is 0.15 degrees; the edges of an ROI narrower than the sweep
+    are one, the same in every follow-up), so nothing changes until a packet is lost:
+    then the object it cut into is dropped although half or more of it is still there.
+    Dead lasers leave the other rings at every azimuth, and points outside the ROI do not
+    count: only a lost packet shows it.
+    """
+
+    name = "sweep_seam_filter"
+    min_gap = 0.5
+    margin = 0.2
+
+    def run(self, cloud: Any, roi: Any = None) -> Stages:
+        stages = super().run(cloud, roi)
+        points, roi = _as_input(cloud, roi)
+        edges = _gap_edges(points[self.roi_mask(points, roi)], self.min_gap)
+        if len(edges) == 0:
+            return stages
+        kept = [box for box in stages.boxes if not _bearing_near(box, edges, self.margin)]
+        return dataclasses.replace(stages, boxes=kept)
+
+
+def _gap_edges(points: NDArray[np.float32], min_gap: float) -> NDArray[np.float64]:
+    """Bearings (degrees) of the returns on either side of each gap wider than
+    ``min_gap`` degrees between neighbouring bearings, the wrap-around included."""
+    if len(points) < 2:
+        return np.empty(0)
+    bearing = np.sort(np.degrees(np.arctan2(points[:, 1], points[:, 0]).astype(np.float64)))
+    step = np.diff(np.concatenate([bearing, [bearing[0] + 360.0]]))
+    wide = np.flatnonzero(step > min_gap)
+    return np.concatenate([bearing[wide], bearing[(wide + 1) % len(bearing)]])
+
+
+def _bearing_near(box: Box, edges: NDArray[np.float64], margin: float) -> bool:
+    """Whether a bearing in ``edges`` lies within ``margin`` degrees of the box's
+    footprint, as seen from the sensor."""
+    centre = math.degrees(math.atan2(box.center[1], box.center[0]))
+    corners = box.corners_bev()
+    offsets = np.degrees(np.arctan2(corners[:, 1], corners[:, 0])) - centre
+    offsets = (offsets + 180.0) % 360.0 - 180.0
+    relative = (edges - centre + 180.0) % 360.0 - 180.0
+    return bool(((relative >= offsets.min() - margin) & (relative <= offsets.max() + margin)).any())
+
+
 def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
     """(n,) int64: one key per voxel of edge ``size`` (cells packed into one integer)."""
     cells = np.floor(coordinates / np.float32(size)).astype(np.int64)
@@ -476,6 +535,7 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         ShortRangeGate,
         RoadUserContext,
         BlindedSensorMonitor,
+        SweepSeamFilter,
     )
 }
 
