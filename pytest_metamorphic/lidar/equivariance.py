@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +30,7 @@ __all__ = [
     "MovedObstacles",
     "RotatedObstacles",
     "ShiftedObstacles",
+    "moved_obstacles",
 ]
 
 #: Default (centre m, size m, yaw degrees, min points, ROI-edge margin m) of rotation
@@ -101,6 +102,15 @@ class MovedObstacles(Relation):
 
     def move_details(self, context: CheckContext) -> dict[str, Any]:
         return {}
+
+    def _param(self, context: CheckContext, key: str, what: str, makers: str) -> float:
+        """The follow-up's ``params[key]`` (its ``what``, e.g. "rotation"), as a float."""
+        if key not in context.params:
+            raise InvalidArgument(
+                f"{self.name} needs the follow-up's {what} in params[{key!r}] "
+                f"(use {makers}.params())"
+            )
+        return float(context.params[key])
 
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         moved = self.move_details(context)  # validates the follow-up's parameters first
@@ -193,12 +203,10 @@ class RotatedObstacles(MovedObstacles):
     moved = "turned"
 
     def _theta(self, context: CheckContext) -> float:
-        if "theta_deg" not in context.params:
-            raise InvalidArgument(
-                f"{self.name} needs the follow-up's rotation in params['theta_deg'] "
-                "(use rotation_equivariance() or RotateAboutSensor.params())"
-            )
-        return math.radians(float(context.params["theta_deg"]))
+        degrees = self._param(
+            context, "theta_deg", "rotation", "rotation_equivariance() or RotateAboutSensor"
+        )
+        return math.radians(degrees)
 
     def move(self, box: Box, context: CheckContext) -> Box:
         return box.rotated(self._theta(context))
@@ -224,15 +232,49 @@ class ShiftedObstacles(MovedObstacles):
     moved = "shifted"
 
     def _dx(self, context: CheckContext) -> float:
-        if "shift_x_m" not in context.params:
-            raise InvalidArgument(
-                f"{self.name} needs the follow-up's shift in params['shift_x_m'] "
-                "(use translation_equivariance() or ShiftAlongX.params())"
-            )
-        return float(context.params["shift_x_m"])
+        return self._param(
+            context, "shift_x_m", "shift", "translation_equivariance() or ShiftAlongX"
+        )
 
     def move(self, box: Box, context: CheckContext) -> Box:
         return box.translated(self._dx(context), 0.0)
 
     def move_details(self, context: CheckContext) -> dict[str, Any]:
         return {"shift_x_m": self._dx(context)}
+
+
+_CHECKS: dict[str, type[MovedObstacles]] = {
+    "rotation": RotatedObstacles,
+    "mirror": MirroredObstacles,
+    "translation": ShiftedObstacles,
+}
+
+
+def moved_obstacles(
+    symmetry: Literal["rotation", "mirror", "translation"],
+    *,
+    quarter_turns: bool = True,
+    center_tolerance: float | None = None,
+    size_tolerance: float | None = None,
+    yaw_tolerance: float | None = None,
+    min_points: int | None = None,
+    boundary_margin: float | None = None,
+    scope: ScopeLike = "roi",
+) -> MovedObstacles:
+    """The check for ``symmetry``, with :data:`TURN_TOLERANCES` filling what is not given:
+    a quarter turn's (labels compared), or with ``quarter_turns=False`` (rotations by
+    other angles) the loose ones (labels not compared)."""
+    if symmetry not in _CHECKS:
+        raise InvalidArgument(f"symmetry={symmetry!r} must be one of {sorted(_CHECKS)}")
+    defaults = TURN_TOLERANCES["quarter_turns" if quarter_turns else "any"]
+    given = (center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin)
+    values = [d if g is None else g for g, d in zip(given, defaults, strict=True)]
+    return _CHECKS[symmetry](
+        center_tolerance=values[0],
+        size_tolerance=values[1],
+        yaw_tolerance=values[2],
+        min_points=values[3],  # type: ignore[arg-type]
+        boundary_margin=values[4],
+        same_label=quarter_turns,
+        scope=scope,
+    )

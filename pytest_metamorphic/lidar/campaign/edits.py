@@ -16,11 +16,8 @@ from pytest_metamorphic.core.matching import Matcher
 from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.campaign.sources import (
     SourceFn,
-    _check_system,
-    _frame_source,
-    _Judged,
     _severities,
-    box_label,
+    scoped_campaign,
 )
 from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject, removal_candidates
 from pytest_metamorphic.lidar.frame import Frame
@@ -33,7 +30,7 @@ from pytest_metamorphic.lidar.insert import (
 )
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike
 
 __all__ = ["EDIT_SEVERITIES", "edit_campaign", "insertion_followup", "removal_followup"]
 
@@ -117,26 +114,26 @@ def edit_campaign(
     """
     if edit not in _EDIT_FOLLOWUPS:
         raise InvalidArgument(f"edit={edit!r} must be one of {sorted(_EDIT_FOLLOWUPS)}")
-    chosen = as_scope(scope)
-    _check_system(system)
     levels = _severities(severities, EDIT_SEVERITIES[edit], 1000)
-    kept = OthersKept(clearance=clearance, matcher=matcher, scope=chosen)
-    relation: Relation = kept
-    if edit == "insertion":
-        found = InsertedDetected(min_points=min_points, min_detected=min_detected, scope=chosen)
-        relation = found & kept
-    source, sources = _frame_source(frames, sources)
-    return Campaign(
+
+    def relation(chosen: ObstacleScope) -> Relation:
+        kept = OthersKept(clearance=clearance, matcher=matcher, scope=chosen)
+        if edit == "removal":
+            return kept
+        return (
+            InsertedDetected(min_points=min_points, min_detected=min_detected, scope=chosen) & kept
+        )
+
+    return scoped_campaign(
+        system,
         name=name,
-        source=source,
+        frames=frames,
+        sources=sources,
         followup=_EDIT_FOLLOWUPS[edit],
-        system=system,
         relation=relation,
         sizes=levels,
-        sources=sources,
         followups=followups,
         seed=seed,
-        category=box_label,
-        counted=None if chosen.everything else _Judged(chosen),
+        scope=scope,
         size_label=_SEVERITY_LABELS[edit],
     )

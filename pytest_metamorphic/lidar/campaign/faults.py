@@ -14,11 +14,8 @@ from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.campaign.sources import (
     SourceFn,
-    _check_system,
-    _frame_source,
-    _Judged,
     _severities,
-    box_label,
+    scoped_campaign,
 )
 from pytest_metamorphic.lidar.faults import (
     PACKET_DEGREES,
@@ -32,7 +29,7 @@ from pytest_metamorphic.lidar.hdl64 import HDL64E
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perturb import SEED_BITS
-from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.scope import ScopeLike
 from pytest_metamorphic.lidar.weather import Weather
 
 __all__ = [
@@ -157,31 +154,26 @@ def fault_campaign(
     """
     if fault not in _FAULT_FOLLOWUPS:
         raise InvalidArgument(f"fault={fault!r} must be one of {sorted(_FAULT_FOLLOWUPS)}")
-    chosen = as_scope(scope)
-    _check_system(system)
     levels = _severities(severities, FAULT_SEVERITIES[fault], _SEVERITY_LIMITS[fault])
     weather = fault in ("fog", "rain")
-    if min_share is None:
-        min_share = 0.8 if weather else 0.5
-    source, sources = _frame_source(frames, sources)
-    return Campaign(
+    share = (0.8 if weather else 0.5) if min_share is None else min_share
+    return scoped_campaign(
+        system,
         name=name,
-        source=source,
+        frames=frames,
+        sources=sources,
         followup=_FAULT_FOLLOWUPS[fault],
-        system=system,
-        relation=CoveredObstaclesKept(
+        relation=lambda chosen: CoveredObstaclesKept(
             min_points=min_points,
-            min_share=min_share,
+            min_share=share,
             min_height_share=min_height_share,
             min_detected=min_detected,
             scope=chosen,
             range_param="visibility_m" if weather else None,
         ),
         sizes=levels,
-        sources=sources,
         followups=followups,
         seed=seed,
-        category=box_label,
-        counted=None if chosen.everything else _Judged(chosen),
+        scope=scope,
         size_label=_SEVERITY_LABELS[fault],
     )

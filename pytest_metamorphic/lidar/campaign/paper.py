@@ -25,16 +25,13 @@ from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.matching import Matcher
 from pytest_metamorphic.lidar.campaign.sources import (
     SourceFn,
-    _check_system,
-    _frame_source,
-    _Judged,
-    box_label,
+    scoped_campaign,
 )
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
 from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
-from pytest_metamorphic.lidar.scope import ScopeLike, as_scope, obstacles_kept
+from pytest_metamorphic.lidar.scope import ScopeLike, obstacles_kept
 
 __all__ = ["mr1_campaign", "noise_followup"]
 
@@ -89,19 +86,15 @@ def mr1_campaign(
         reporting the whole sweep is not blamed for changes off the road (the table's
         "out of scope" column counts those pairs). ``"all"``: every obstacle.
     """
-    chosen = as_scope(scope)
-    _check_system(system)
-    source, sources = _frame_source(frames, sources)
-    return Campaign(
+    return scoped_campaign(
+        system,
         name=name,
-        source=source,
-        followup=noise_followup,
-        system=system,
-        relation=obstacles_kept(matcher=matcher or IoUMatcher(), scope=chosen),
-        sizes=tuple(sizes),
+        frames=frames,
         sources=sources,
+        followup=noise_followup,
+        relation=lambda chosen: obstacles_kept(matcher=matcher or IoUMatcher(), scope=chosen),
+        sizes=sizes,
         followups=followups,
         seed=seed,
-        category=box_label,
-        counted=None if chosen.everything else _Judged(chosen),
+        scope=scope,
     )

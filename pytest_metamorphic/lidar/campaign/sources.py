@@ -9,14 +9,16 @@ from typing import Any
 
 import numpy as np
 
+from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.layout import random_scene
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.scene import render
-from pytest_metamorphic.lidar.scope import ObstacleScope
+from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
 __all__ = [
     "DEFAULT_SYNTHETIC_SOURCES",
@@ -139,3 +141,40 @@ class _Judged:
         for box in boxes:
             box_label(box)  # names a non-Box item the way the campaign's own check does
         return self.scope.select(boxes, frame)
+
+
+def scoped_campaign(
+    system: Callable[[Frame], Sequence[Box]],
+    *,
+    name: str,
+    frames: SourceFn | FrameCatalog | str | os.PathLike[str] | None,
+    sources: int | None,
+    followup: Callable[[Frame, int, np.random.Generator], Any],
+    relation: Callable[[ObstacleScope], Relation],
+    sizes: Sequence[int],
+    followups: int,
+    seed: int,
+    scope: ScopeLike,
+    size_label: str = "n",
+) -> Campaign:
+    """A LiDAR campaign whose tables count what ``scope`` judges, broken down by label;
+    ``relation`` is built from the resolved scope (arguments checked before any frame is
+    read)."""
+    chosen = as_scope(scope)
+    _check_system(system)
+    check = relation(chosen)
+    source, sources = _frame_source(frames, sources)
+    return Campaign(
+        name=name,
+        source=source,
+        followup=followup,
+        system=system,
+        relation=check,
+        sizes=tuple(sizes),
+        sources=sources,
+        followups=followups,
+        seed=seed,
+        category=box_label,
+        counted=None if chosen.everything else _Judged(chosen),
+        size_label=size_label,
+    )

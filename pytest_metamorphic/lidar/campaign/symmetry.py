@@ -15,24 +15,15 @@ from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.campaign.sources import (
     SourceFn,
-    _check_system,
-    _frame_source,
-    _Judged,
     _severities,
-    box_label,
+    scoped_campaign,
 )
-from pytest_metamorphic.lidar.equivariance import (
-    TURN_TOLERANCES,
-    MirroredObstacles,
-    MovedObstacles,
-    RotatedObstacles,
-    ShiftedObstacles,
-)
+from pytest_metamorphic.lidar.equivariance import moved_obstacles
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perturb import RotateAboutSensor
-from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.scope import ScopeLike
 from pytest_metamorphic.lidar.symmetry import MirrorAcrossX, ShiftAlongX
 
 __all__ = [
@@ -122,39 +113,27 @@ def symmetry_campaign(
     """
     if symmetry not in _FOLLOWUPS:
         raise InvalidArgument(f"symmetry={symmetry!r} must be one of {sorted(_FOLLOWUPS)}")
-    chosen = as_scope(scope)
-    _check_system(system)
     levels = _severities(severities, SYMMETRY_SEVERITIES[symmetry], _SEVERITY_LIMITS[symmetry])
     quarter = symmetry != "rotation" or all(level % 90 == 0 for level in levels)
-    defaults = TURN_TOLERANCES["quarter_turns" if quarter else "any"]
-    given = (center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin)
-    values = [d if g is None else g for g, d in zip(given, defaults, strict=True)]
-    check: type[MovedObstacles] = {
-        "rotation": RotatedObstacles,
-        "mirror": MirroredObstacles,
-        "translation": ShiftedObstacles,
-    }[symmetry]
-    relation = check(
-        center_tolerance=values[0],
-        size_tolerance=values[1],
-        yaw_tolerance=values[2],
-        min_points=int(values[3]),
-        boundary_margin=values[4],
-        same_label=quarter,
-        scope=chosen,
-    )
-    source, sources = _frame_source(frames, sources)
-    return Campaign(
+    return scoped_campaign(
+        system,
         name=name,
-        source=source,
-        followup=_FOLLOWUPS[symmetry],
-        system=system,
-        relation=relation,
-        sizes=levels,
+        frames=frames,
         sources=sources,
+        followup=_FOLLOWUPS[symmetry],
+        relation=lambda chosen: moved_obstacles(
+            symmetry,
+            quarter_turns=quarter,
+            center_tolerance=center_tolerance,
+            size_tolerance=size_tolerance,
+            yaw_tolerance=yaw_tolerance,
+            min_points=min_points,
+            boundary_margin=boundary_margin,
+            scope=chosen,
+        ),
+        sizes=levels,
         followups=followups,
         seed=seed,
-        category=box_label,
-        counted=None if chosen.everything else _Judged(chosen),
+        scope=scope,
         size_label=_SEVERITY_LABELS[symmetry],
     )

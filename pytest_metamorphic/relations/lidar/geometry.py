@@ -10,11 +10,11 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.equivariance import (
-    TURN_TOLERANCES,
     MirroredObstacles,
     MovedObstacles,
     RotatedObstacles,
     ShiftedObstacles,
+    moved_obstacles,
 )
 from pytest_metamorphic.lidar.perturb import RotateAboutSensor
 from pytest_metamorphic.lidar.scope import ScopeLike
@@ -73,16 +73,14 @@ def rotation_equivariance(
     if angles not in ("quarter_turns", "any"):
         raise InvalidArgument(f"angles={angles!r} must be 'quarter_turns' or 'any'")
     quarter = angles == "quarter_turns"
-    defaults = TURN_TOLERANCES[angles]
-    given = (center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin)
-    values = [d if g is None else g for g, d in zip(given, defaults, strict=True)]
-    relation = RotatedObstacles(
-        center_tolerance=values[0],
-        size_tolerance=values[1],
-        yaw_tolerance=values[2],
-        min_points=values[3],
-        boundary_margin=values[4],
-        same_label=quarter,
+    relation = moved_obstacles(
+        "rotation",
+        quarter_turns=quarter,
+        center_tolerance=center_tolerance,
+        size_tolerance=size_tolerance,
+        yaw_tolerance=yaw_tolerance,
+        min_points=min_points,
+        boundary_margin=boundary_margin,
         scope=scope,
     )
     if quarter:
@@ -125,13 +123,13 @@ def mirror_symmetry(
     its boxes in a frame turned about the sensor (a wrong yaw extrinsic) commutes with
     every rotation, but not with a reflection.
     """
-    relation = MirroredObstacles(
+    relation = moved_obstacles(
+        "mirror",
         center_tolerance=center_tolerance,
         size_tolerance=size_tolerance,
         yaw_tolerance=yaw_tolerance,
         min_points=min_points,
         boundary_margin=boundary_margin,
-        same_label=True,
         scope=scope,
     )
 
@@ -172,13 +170,13 @@ def translation_equivariance(
     if not (math.isfinite(cell_size) and cell_size > 0):
         raise InvalidArgument(f"cell_size={cell_size!r} must be a number of metres > 0")
     _check_size(max_cells, "max_cells")
-    relation = ShiftedObstacles(
+    relation = moved_obstacles(
+        "translation",
         center_tolerance=center_tolerance,
         size_tolerance=size_tolerance,
         yaw_tolerance=yaw_tolerance,
         min_points=0,
         boundary_margin=boundary_margin,
-        same_label=True,
         scope=scope,
     )
     # 1, -1, 2, -2, ... cells: shrinks toward one cell forward.
