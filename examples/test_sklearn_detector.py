@@ -34,7 +34,7 @@ from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.campaign import mr1_campaign
+from pytest_metamorphic.lidar.campaign import fault_campaign, mr1_campaign, symmetry_campaign
 from pytest_metamorphic.lidar.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.faults import DropRings
 from pytest_metamorphic.lidar.frame import Frame
@@ -202,3 +202,23 @@ if KITTI.is_dir():
             followups=3,
         )
     )
+    # How fragile is it where it is not tested above? Rates per relation and severity:
+    # quarter turns and the mirror (RANSAC re-sorts), dead lasers and lost packets.
+    test_rotation_sklearn = campaign_test(
+        symmetry_campaign(
+            SklearnDetector(), symmetry="rotation", name="rotation sklearn detector",
+            frames=_catalog(),
+        )
+    )  # fmt: skip
+    test_mirror_sklearn = campaign_test(
+        symmetry_campaign(
+            SklearnDetector(), symmetry="mirror", name="mirror sklearn detector",
+            frames=_catalog(),
+        )
+    )  # fmt: skip
+    test_packet_loss_sklearn = campaign_test(
+        fault_campaign(
+            SklearnDetector(), fault="packet_loss", name="lost packets sklearn detector",
+            frames=_catalog(), followups=3,
+        )
+    )  # fmt: skip
