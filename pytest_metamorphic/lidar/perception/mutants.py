@@ -45,9 +45,7 @@ sweep_seam_filter           obstacles next to a gap of > 0.5 degrees in the ROI'
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,12 +56,7 @@ from pytest_metamorphic.lidar.obstacles import Box
 from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Clusters, cluster_points
 from pytest_metamorphic.lidar.perception.ground import ground_heights
 from pytest_metamorphic.lidar.perception.minbox import MinBox
-from pytest_metamorphic.lidar.perception.pipeline import (
-    PerceptionParams,
-    ReferencePerception,
-    Stages,
-    _as_input,
-)
+from pytest_metamorphic.lidar.perception.pipeline import PerceptionParams, ReferencePerception
 
 __all__ = ["MUTANTS", "mutant"]
 
@@ -470,14 +463,11 @@ class SweepSeamFilter(ReferencePerception):
     min_gap = 0.5
     margin = 0.2
 
-    def run(self, cloud: Any, roi: Any = None) -> Stages:
-        stages = super().run(cloud, roi)
-        points, roi = _as_input(cloud, roi)
-        edges = _gap_edges(points[self.roi_mask(points, roi)], self.min_gap)
+    def review_boxes(self, boxes: list[Box], in_roi: NDArray[np.float32]) -> list[Box]:
+        edges = _gap_edges(in_roi, self.min_gap)
         if len(edges) == 0:
-            return stages
-        kept = [box for box in stages.boxes if not _bearing_near(box, edges, self.margin)]
-        return dataclasses.replace(stages, boxes=kept)
+            return boxes
+        return [box for box in boxes if not _bearing_near(box, edges, self.margin)]
 
 
 def _gap_edges(points: NDArray[np.float32], min_gap: float) -> NDArray[np.float64]:

@@ -185,7 +185,7 @@ class ReferencePerception:
         keep = self.obstacle_mask(in_roi, ground_z, sweep)
         obstacles, ground_z = in_roi[keep], ground_z[keep]
         clusters = self.segment(obstacles, sweep)
-        boxes = self.build_boxes(obstacles, ground_z, clusters)
+        boxes = self.review_boxes(self.build_boxes(obstacles, ground_z, clusters), in_roi)
         return Stages(len(in_roi), len(obstacles), clusters.count, boxes)
 
     # -- stages ---------------------------------------------------------------------------
@@ -257,6 +257,10 @@ class ReferencePerception:
             )
         ]
         return sorted(boxes, key=_sort_key)
+
+    def review_boxes(self, boxes: list[Box], in_roi: NDArray[np.float32]) -> list[Box]:
+        """The output, given the ROI's returns, ground included (the reference: as built)."""
+        return boxes
 
     def keep_objects(self, clusters: Clusters, top: NDArray[np.float32]) -> NDArray[np.bool_]:
         """(count,) bool: objects big and tall enough (``top``: highest point above ground)."""
