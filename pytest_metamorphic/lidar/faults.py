@@ -27,7 +27,7 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.obstacles import Box, share_inside
+from pytest_metamorphic.lidar.obstacles import Box, as_boxes, share_inside
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
 __all__ = [
@@ -295,16 +295,6 @@ def _frames(context: CheckContext) -> tuple[Frame, Frame]:
     return frames  # type: ignore[return-value]
 
 
-def _boxes(values: Any, which: str) -> list[Box]:
-    boxes = list(values)
-    for box in boxes:
-        if not isinstance(box, Box):
-            raise InvalidArgument(
-                f"the coverage check needs Box outputs; a {which} item is {box!r}"
-            )
-    return boxes
-
-
 def _count(value: Any, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise InvalidArgument(f"{name}={value!r} must be a positive int")
@@ -383,8 +373,8 @@ class CoveredObstaclesKept(Relation):
 
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         source, followup = _frames(context)
-        boxes = _boxes(source_output, "source")
-        found = _boxes(followup_output, "follow-up")
+        boxes = as_boxes(source_output, "source")
+        found = as_boxes(followup_output, "follow-up")
         reach = math.inf
         if self.range_param is not None:
             reach = float(context.params.get(self.range_param, math.inf))

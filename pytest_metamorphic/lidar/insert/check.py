@@ -7,7 +7,7 @@ from typing import Any
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.insert.insertion import InsertObject
-from pytest_metamorphic.lidar.obstacles import Box, share_inside
+from pytest_metamorphic.lidar.obstacles import as_boxes, share_inside
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
 
 __all__ = ["InsertedDetected"]
@@ -51,12 +51,7 @@ class InsertedDetected(Relation):
         if returns < self.min_points or not judged:
             details["judged"] = False
             return Verdict(True, self.name, "too few returns or not judged", details)
-        for value in followup_output:
-            if not isinstance(value, Box):
-                raise InvalidArgument(
-                    f"object insertion needs Box outputs; a follow-up item is {value!r}"
-                )
-        share = share_inside(insertion.points[:, :3], list(followup_output))
+        share = share_inside(insertion.points[:, :3], as_boxes(followup_output, "follow-up"))
         details.update(judged=True, detected_share=round(share, 3))
         if share >= self.min_detected:
             return Verdict(True, self.name, details=details)

@@ -402,9 +402,19 @@ class RoadUserContext(ReferencePerception):
     min_points = 20
     radius = 10.0
 
-    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
-        # The filter counts distinct returns: a return the driver sent twice is one.
-        return np.unique(points, axis=0)
+    def obstacle_mask(
+        self,
+        points: NDArray[np.float32],
+        ground_z: NDArray[np.float32],
+        sweep: NDArray[np.float32],
+    ) -> NDArray[np.bool_]:
+        # The filter counts distinct returns (a return the driver sent twice is one): keep
+        # the first of each repeated obstacle point, which changes no cell and no hull.
+        rows = np.flatnonzero(super().obstacle_mask(points, ground_z, sweep))
+        _, first = np.unique(points[rows], axis=0, return_index=True)
+        distinct = np.zeros(len(points), dtype=bool)
+        distinct[rows[first]] = True
+        return distinct
 
     def build_boxes(
         self, points: NDArray[np.float32], ground_z: NDArray[np.float32], clusters: Clusters
