@@ -26,6 +26,7 @@ from hypothesis import given, settings
 from hypothesis.errors import HypothesisException
 from hypothesis.strategies import SearchStrategy
 
+from pytest_metamorphic.core.batching import DEFAULT_BATCH_SIZE, SystemCalls, check_batch_outputs
 from pytest_metamorphic.core.cases import (
     CASE_ARGUMENT,
     Followup,
@@ -99,11 +100,16 @@ class _Runner:
         mrs: tuple[MetamorphicRelation, ...],
         check_determinism: bool | None,
         timeout: float | None = None,
+        batch: int = 0,
     ) -> None:
-        self.fn = fn
+        self.fn = fn if not batch else _SingleOfBatch(fn)
+        self.batch_fn = fn if batch else None
+        self.batch = batch
         self.mrs = mrs
         self.check_determinism = check_determinism
         self.timeout = timeout
+        # Outputs of the current case computed ahead in batches: id(input) -> outcome.
+        self._ahead: dict[int, tuple[Any, BaseException | None]] = {}
 
     def _limit(self) -> float | None:
         """The per-call time limit: the decorator's, else ``--mt-timeout``'s, else none."""
@@ -115,6 +121,33 @@ class _Runner:
     def __call__(self, case: MetamorphicCase, fixtures: dict[str, Any]) -> None:
         __tracebackhide__ = True  # failures should show the user's frames, not the engine's
         recorder = current_recorder()
+        self._ahead = self._run_ahead(case, fixtures) if self.batch else {}
+        try:
+            self._check_case(case, fixtures, recorder)
+        finally:
+            self._ahead = {}
+
+    def _run_ahead(
+        self, case: MetamorphicCase, fixtures: dict[str, Any]
+    ) -> dict[int, tuple[Any, BaseException | None]]:
+        """Outputs of the source and every follow-up, computed in batches."""
+        values = [case.source]
+        whats = ["the source input"]
+        for mr in self.mrs:
+            for index, item in enumerate(case.followups.get(mr.name, ())):
+                values.append(item.input)
+                whats.append(f"follow-up {index} of relation {mr.name!r}")
+        calls = SystemCalls(_FixturedBatch(self.batch_fn, fixtures, self.batch), self._limit())
+        ahead: dict[int, tuple[Any, BaseException | None]] = {}
+        for start in range(0, len(values), self.batch):
+            chunk = values[start : start + self.batch]
+            outcomes = calls.run(chunk, whats[start : start + self.batch])
+            for value, outcome in zip(chunk, outcomes, strict=True):
+                ahead.setdefault(id(value), outcome)
+        return ahead
+
+    def _check_case(self, case: MetamorphicCase, fixtures: dict[str, Any], recorder: Any) -> None:
+        __tracebackhide__ = True
         source_output = self._run(case.source, fixtures, "the source input", "source", None)
         if recorder:
             recorder.source_calls += 1
@@ -236,10 +269,22 @@ class _Runner:
         return reduction, ""
 
     def _run(
-        self, value: Any, fixtures: dict[str, Any], what: str, stage: str, relation: str | None
+        self,
+        value: Any,
+        fixtures: dict[str, Any],
+        what: str,
+        stage: str,
+        relation: str | None,
+        fresh: bool = False,
     ) -> Any:
         __tracebackhide__ = True
         try:
+            ahead = None if fresh else self._ahead.get(id(value))
+            if ahead is not None:
+                output, error = ahead
+                if error is not None:
+                    raise error
+                return output
             return call_with_timeout(self.fn, value, seconds=self._limit(), what=what, **fixtures)
         except HypothesisException:
             raise  # assume(), reject(): Hypothesis control flow, not a crash
@@ -271,7 +316,9 @@ class _Runner:
             enabled = recorder.check_determinism if recorder else True
         if not enabled:
             return
-        again = self._run(case.source, fixtures, "the source input (re-run)", "source", None)
+        again = self._run(
+            case.source, fixtures, "the source input (re-run)", "source", None, fresh=True
+        )
         if stats:
             stats.sut_calls += 1
         difference = first_difference(source_output, again)
@@ -295,6 +342,7 @@ def metamorphic(
     followups: int | None = None,
     check_determinism: bool | None = None,
     timeout: float | None = None,
+    batch: bool | int = False,
 ) -> Callable[[Callable[..., Any]], Callable[..., None]]:
     """Turn a function that runs the system under test into a metamorphic Hypothesis test.
 
@@ -320,6 +368,14 @@ def metamorphic(
         (:class:`~pytest_metamorphic.core.errors.SystemTimeout` chained), never as a
         violation, and Hypothesis saves the case for replay as for any failure. An
         in-process call cannot be stopped: it is left running in a background thread.
+    batch : bool or int
+        True (or a batch size; True means 8): the decorated function takes a *list* of
+        inputs and returns their outputs in order, so a model runs the source and its
+        follow-ups in batches (:mod:`pytest_metamorphic.core.batching`). Each output must
+        be what the function gives that input alone: the determinism re-check and the
+        reduction of a violation call it with one input at a time. A batch that raises is
+        run again one input at a time, so a crash names its input. ``timeout`` stays per
+        input (a batch of k inputs may take k times as long).
 
     The decorated function takes the input as its first parameter (more parameters are
     pytest fixtures) and returns the system's output. Stack ``@settings(...)`` on top as
@@ -332,6 +388,7 @@ def metamorphic(
     if check_determinism is not None and not isinstance(check_determinism, bool):
         raise InvalidArgument(f"check_determinism={check_determinism!r} must be a bool")
     limit = check_timeout(timeout)
+    batch_size = _check_batch(batch)
 
     def decorate(fn: Callable[..., Any]) -> Callable[..., None]:
         if not callable(fn):
@@ -346,7 +403,7 @@ def metamorphic(
                 f"{fn.__qualname__} is async; @metamorphic needs a plain function"
             )
         _, fixtures = _input_parameter(fn)
-        runner = _Runner(fn, mrs, check_determinism, limit)
+        runner = _Runner(fn, mrs, check_determinism, limit, batch_size)
 
         @functools.wraps(fn)
         def test(**kwargs: Any) -> None:
@@ -366,10 +423,49 @@ def metamorphic(
         wrapped._hypothesis_internal_use_settings = settings(
             wrapped._hypothesis_internal_use_settings, deadline=None
         )
-        wrapped._metamorphic = MetamorphicSpec(source, mrs, count, check_determinism, fn)
+        wrapped._metamorphic = MetamorphicSpec(
+            source, mrs, count, check_determinism, fn, batch_size
+        )
         return wrapped
 
     return decorate
+
+
+def _check_batch(batch: Any) -> int:
+    """The batch size ``batch=`` asks for (0: no batches)."""
+    if batch is False:
+        return 0
+    if batch is True:
+        return DEFAULT_BATCH_SIZE
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise InvalidArgument(f"batch={batch!r} must be True, False or a batch size >= 1")
+    return batch
+
+
+class _SingleOfBatch:
+    """A batch function called with one input: ``fn([x], **fixtures)[0]``."""
+
+    def __init__(self, fn: Callable[..., Any]) -> None:
+        self.fn = fn
+
+    def __call__(self, value: Any, **fixtures: Any) -> Any:
+        return check_batch_outputs(self.fn([value], **fixtures), 1, self.fn)[0]
+
+
+class _FixturedBatch:
+    """The decorated batch function with the test's fixtures bound, as a batch system."""
+
+    def __init__(self, fn: Any, fixtures: dict[str, Any], batch_size: int) -> None:
+        self.fn, self.fixtures, self.batch_size = fn, fixtures, batch_size
+
+    def __call__(self, value: Any) -> Any:
+        return check_batch_outputs(self.fn([value], **self.fixtures), 1, self.fn)[0]
+
+    def run_batch(self, values: Sequence[Any]) -> Any:
+        return self.fn(list(values), **self.fixtures)
+
+    def __repr__(self) -> str:
+        return getattr(self.fn, "__qualname__", repr(self.fn))
 
 
 @dataclass(frozen=True)
@@ -381,3 +477,10 @@ class MetamorphicSpec:
     followups: int | None
     check_determinism: bool | None
     function: Callable[..., Any]
+    batch: int = 0  # the function takes a list of inputs (``@metamorphic(batch=...)``)
+
+    def call(self, value: Any, **fixtures: Any) -> Any:
+        """The system's output for one input (through a batch of one for batch tests)."""
+        if self.batch:
+            return _SingleOfBatch(self.function)(value, **fixtures)
+        return self.function(value, **fixtures)

@@ -20,6 +20,11 @@ Two ways to run the command:
   command is started once; for each frame it is sent one line ``INPUT<TAB>OUTPUT`` on
   stdin, writes its predictions to OUTPUT, then prints one line on stdout (anything,
   e.g. ``done``; logs go to stderr). If it dies it is restarted for the next frame.
+  With ``batch_size=k`` it may also be sent up to k frames in one line,
+  ``INPUT1<TAB>OUTPUT1<TAB>INPUT2<TAB>OUTPUT2...``, and answers one line when every
+  OUTPUT is written: campaigns and ``@metamorphic(batch=True)`` tests then hand it a
+  source and its follow-ups together (:mod:`pytest_metamorphic.core.batching`), so a
+  model can run them as one batch.
 
 ``timeout`` bounds each frame (the first frame of a process also gets
 ``startup_timeout`` for loading); a process past it is killed and the call raises
@@ -155,6 +160,10 @@ class ProcessDetector:
         Extra seconds for the first frame of a fresh process (loading a model).
     env, cwd
         The command's environment (added to this process's) and working directory.
+    batch_size : int, optional
+        For ``persistent=True``: the process understands requests of up to this many
+        frames (see the module docstring), and :meth:`run_batch` sends them. None (the
+        default): one frame per request.
     """
 
     def __init__(
@@ -170,6 +179,7 @@ class ProcessDetector:
         startup_timeout: float = 60.0,
         env: Mapping[str, str] | None = None,
         cwd: str | os.PathLike[str] | None = None,
+        batch_size: int | None = None,
     ) -> None:
         self.command = _as_command(command)
         if not isinstance(persistent, bool):
@@ -195,6 +205,14 @@ class ProcessDetector:
             raise InvalidArgument("calibration= is only used with output_format='kitti'")
         if shutil.which(self.command[0]) is None and not Path(self.command[0]).is_file():
             raise InvalidArgument(f"command {self.command[0]!r} not found (PATH or a file)")
+        if batch_size is not None:
+            if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+                raise InvalidArgument(f"batch_size={batch_size!r} must be an int >= 1 or None")
+            if not persistent:
+                raise InvalidArgument(
+                    "batch_size= needs persistent=True (batches go to a long-lived process)"
+                )
+        self.batch_size = batch_size
         self.persistent = persistent
         self.input_format = input_format
         self.output_format = output_format
@@ -255,17 +273,45 @@ class ProcessDetector:
         """Run the command on ``frame`` (a Frame, a PointCloud or an (n, 4) array)."""
         cloud = _as_cloud(frame)
         with self._lock, tempfile.TemporaryDirectory(prefix="mt-process-") as folder:
-            source = Path(folder) / f"frame.{self.input_format}"
-            target = Path(folder) / (
-                "predictions.json" if self.output_format == "json" else "predictions.txt"
-            )
+            ((source, target),) = self._files(Path(folder), 1)
             self._write(cloud, source)
             self.calls += 1
             if self.persistent:
-                self._request(source, target)
+                self._request([(source, target)])
             else:
                 self._run_once(source, target)
             return self._read(target)
+
+    def run_batch(self, frames: Sequence[Any]) -> list[list[Box]]:
+        """Run the command on several frames in one request (needs ``batch_size``).
+
+        Returns one list of boxes per frame, in order. The request may take ``timeout``
+        seconds per frame.
+        """
+        if self.batch_size is None:
+            raise InvalidArgument(
+                f"{self!r} takes one frame per request; give batch_size= to send batches"
+            )
+        if len(frames) > self.batch_size:
+            raise InvalidArgument(f"{len(frames)} frames exceed batch_size={self.batch_size}")
+        clouds = [_as_cloud(frame) for frame in frames]
+        if not clouds:
+            return []
+        with self._lock, tempfile.TemporaryDirectory(prefix="mt-process-") as folder:
+            files = self._files(Path(folder), len(clouds))
+            for cloud, (source, _) in zip(clouds, files, strict=True):
+                self._write(cloud, source)
+            self.calls += len(clouds)
+            self._request(files)
+            return [self._read(target) for _, target in files]
+
+    def _files(self, folder: Path, count: int) -> list[tuple[Path, Path]]:
+        suffix = "json" if self.output_format == "json" else "txt"
+        tags = [""] if count == 1 else [str(i) for i in range(count)]
+        return [
+            (folder / f"frame{tag}.{self.input_format}", folder / f"predictions{tag}.{suffix}")
+            for tag in tags
+        ]
 
     # -- handing over ----------------------------------------------------------------------
 
@@ -357,16 +403,17 @@ class ProcessDetector:
         self._fresh = True
         return self._process
 
-    def _request(self, source: Path, target: Path) -> None:
+    def _request(self, files: Sequence[tuple[Path, Path]]) -> None:
         process = self._process
         if process is None or process.poll() is not None:
             process = self._start()
-        limit = None if self.timeout is None else self.timeout
+        limit = None if self.timeout is None else self.timeout * len(files)
         if limit is not None and self._fresh:
             limit += self.startup_timeout
         self._fresh = False
+        line = "\t".join(f"{source}\t{target}" for source, target in files)
         try:
-            process.stdin.write(f"{source}\t{target}\n")  # type: ignore[union-attr]
+            process.stdin.write(f"{line}\n")  # type: ignore[union-attr]
             process.stdin.flush()  # type: ignore[union-attr]
         except (BrokenPipeError, OSError):
             self._died(process)

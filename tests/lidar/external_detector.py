@@ -56,9 +56,11 @@ def main() -> None:
         return
     print("model loaded", file=sys.stderr)
     for line in sys.stdin:
-        source, target = line.rstrip("\n").split("\t")
-        detect(source, target, options, detector)
-        print("done", flush=True)
+        # One frame per line, or a batch: INPUT<TAB>OUTPUT pairs one after another.
+        parts = line.rstrip("\n").split("\t")
+        for source, target in zip(parts[::2], parts[1::2], strict=True):
+            detect(source, target, options, detector)
+        print(f"done {len(parts) // 2}", flush=True)
 
 
 if __name__ == "__main__":

@@ -138,6 +138,31 @@ def test_metamorphic_tests_and_campaigns_drive_a_process(tmp_path: Path) -> None
     served.close()
 
 
+def test_a_persistent_process_takes_batches_of_frames(tmp_path: Path) -> None:
+    catalog = FrameCatalog(
+        conftest.shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    )
+    frames = [catalog.load(i) for i in range(3)]
+    one_by_one = ProcessDetector(PER_FRAME, env=ENV)
+    expected = [one_by_one(frame) for frame in frames]
+    with ProcessDetector([sys.executable, SCRIPT, "--serve"], persistent=True, env=ENV,
+                         batch_size=4) as served:  # fmt: skip
+        assert served.run_batch(frames) == expected
+        assert served.starts == 1 and served.calls == 3
+        # A campaign sends the source with its follow-ups: 1 + 2 sizes x 2 = 5 inputs per
+        # source, in requests of 4 and 1; the results are those of one frame per request.
+        kwargs = {"name": "p", "frames": catalog, "sources": 2, "sizes": (10, 100), "followups": 2}
+        result = run_campaign(mr1_campaign(served, **kwargs))
+        assert served.calls == 3 + 10
+    direct = run_campaign(mr1_campaign(one_by_one, **kwargs))
+    assert result.outcome_json() == direct.outcome_json()
+    with pytest.raises(InvalidArgument, match="needs persistent=True"):
+        ProcessDetector(PER_FRAME, batch_size=2)
+    single = ProcessDetector([sys.executable, SCRIPT, "--serve"], persistent=True, env=ENV)
+    with pytest.raises(InvalidArgument, match="give batch_size= to send batches"):
+        single.run_batch(frames)
+
+
 def test_json_prediction_layouts(tmp_path: Path) -> None:
     path = tmp_path / "p.json"
     path.write_text('[{"center": [1, 2, 3], "size": [4, 2, 1.5], "yaw": 0.1, "label": "car"}]')

@@ -54,7 +54,7 @@ from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Cluste
 from pytest_metamorphic.lidar.perception.ground import GroundParams, ground_heights
 from pytest_metamorphic.lidar.perception.minbox import HullStart, MinBox, min_boxes
 
-__all__ = ["PerceptionParams", "ReferencePerception", "Stages"]
+__all__ = ["PerceptionParams", "ReferencePerception", "Stages", "sweep_and_roi"]
 
 # Apollo's SetDefaultValue widens degenerate extents to 1 mm; Box needs sizes > 0.
 _MIN_EXTENT = 1e-3
@@ -178,7 +178,7 @@ class ReferencePerception:
 
     def run(self, cloud: Any, roi: Any = None) -> Stages:
         """Like calling the pipeline, but also report what each stage kept."""
-        points, roi = _as_input(cloud, roi)
+        points, roi = sweep_and_roi(cloud, roi)
         sweep = self.prepare(points)
         in_roi = sweep[self.roi_mask(sweep, roi)]
         ground_z = self.ground_heights(in_roi, sweep, roi)
@@ -277,8 +277,12 @@ class ReferencePerception:
         return classify(features, self.params.classifier)
 
 
-def _as_input(cloud: Any, roi: Any) -> tuple[NDArray[np.float32], Any]:
-    """Normalise the pipeline's input to an (n, 4) float32 array and an ROI (or None)."""
+def sweep_and_roi(cloud: Any, roi: Any) -> tuple[NDArray[np.float32], Any]:
+    """A detector's input normalised: an (n, 4) float32 array and an ROI (or None).
+
+    ``cloud`` may be a frame (its ``.roi`` is used when ``roi`` is None), a PointCloud or
+    an (n, 3) or (n, 4) array_like.
+    """
     frame_cloud = getattr(cloud, "cloud", None)
     if frame_cloud is not None:
         if roi is None:
