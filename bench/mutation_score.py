@@ -21,7 +21,11 @@ Relations run with their default scope: obstacles wholly inside the ROI are judg
 (:class:`~pytest_metamorphic.lidar.perception.whole_scene.WholeScenePerception`, the
 reference without its ROI filter) is a second correct system: every relation it
 violates is a *false alarm* (target 0). It runs every relation but rotation by any
-angle, which it is not expected to satisfy (see ``rotation_equivariance``).
+angle, which it is not expected to satisfy (see ``rotation_equivariance``). The learned
+detector with features from the ROI only
+(:class:`~pytest_metamorphic.lidar.perception.cnnseg.CNNSegmentation`, ``full_cloud=False``)
+is a third, on the relations its design and training make hold (:data:`LEARNED_HOLDS`);
+the others are not run for it (README, "Testing a learned detector", says why).
 
     python bench/mutation_score.py [--max-examples N] [--mutants a,b,...] [--scope roi|all]
 """
@@ -69,6 +73,14 @@ DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "
 KITTI = DATA / "kitti_openpcdet" / "training"
 GROUND_Z = -1.73
 EXAMPLE_LINES = 14
+# Relations the learned detector with ROI-only features must satisfy (by name prefix).
+LEARNED_HOLDS = (
+    "MR1: noise outside ROI",
+    "MR1 (paper's check)",
+    "noise outside ROI => O == O'",
+    "outside-ROI points removed",
+    "points reordered",
+)
 
 
 def _standing(x: float, y: float, size: tuple[float, float, float], yaw: float, label: str) -> Box:
@@ -152,6 +164,15 @@ def run_relation(
     return "ok", ""
 
 
+def _expected(label: str, relation: MetamorphicRelation, any_angle: bool) -> bool:
+    """Whether a correct system claims ``relation`` (mutants are run on everything)."""
+    if label == "whole_scene":
+        return not any_angle
+    if label == "cnnseg_roi":
+        return relation.name.startswith(LEARNED_HOLDS)
+    return True
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-examples", type=int, default=100)
@@ -173,7 +194,16 @@ def main() -> None:
     suite.append((rotation_equivariance(angles="any", scope=args.scope), synthetic))
     short = [f"R{i + 1}" for i in range(len(suite))]
 
-    correct = {"reference": ReferencePerception(), "whole_scene": WholeScenePerception()}
+    correct: dict[str, Any] = {
+        "reference": ReferencePerception(),
+        "whole_scene": WholeScenePerception(),
+    }
+    try:
+        from pytest_metamorphic.lidar.perception.cnnseg import CNNSegmentation
+
+        correct["cnnseg_roi"] = CNNSegmentation(full_cloud=False)
+    except Exception as error:  # onnxruntime missing: say so, run the rest
+        print(f"learned detector skipped: {error}")
     systems = {**correct, **{name: mutant(name) for name in names}}
     results: dict[str, list[tuple[str, str]]] = {}
     started = time.perf_counter()
@@ -181,7 +211,7 @@ def main() -> None:
         began = time.perf_counter()
         results[label] = [
             ("n/a", "")
-            if label == "whole_scene" and index == len(suite) - 1
+            if not _expected(label, relation, index == len(suite) - 1)
             else run_relation(system, relation, source, args.max_examples)
             for index, (relation, source) in enumerate(suite)
         ]
@@ -210,10 +240,15 @@ def main() -> None:
         print(f"{label:<26}" + "".join(f"{c:>4}" for c in cells) + f"  {verdict}")
     if unsound:
         print(f"\nthe reference violates {sorted(short[i] for i in unsound)}: not counted")
-    false_alarms = sum(status in ("killed", "error") for status, _ in results["whole_scene"])
-    for code, (status, text) in zip(short, results["whole_scene"], strict=True):
-        if status in ("killed", "error"):
-            print(f"\n  FALSE ALARM whole_scene x {code}:\n      " + text[:1500])
+    alarms = {
+        label: sum(status in ("killed", "error") for status, _ in results[label])
+        for label in correct
+        if label != "reference"
+    }
+    for label in alarms:
+        for code, (status, text) in zip(short, results[label], strict=True):
+            if status in ("killed", "error"):
+                print(f"\n  FALSE ALARM {label} x {code}:\n      " + text[:1500])
     print("\nMinimal failing examples (shrunk by Hypothesis):")
     for label in names:
         for code, (status, text) in zip(short, results[label], strict=True):
@@ -232,7 +267,8 @@ def main() -> None:
     print(
         f"RESULT mutation_score={score:.4f} mutants={total} killed={killed_count} "
         f"relations={len(suite)} reference_violations={len(unsound)} "
-        f"whole_scene_false_alarms={false_alarms} seconds={elapsed:.0f}"
+        f"whole_scene_false_alarms={alarms['whole_scene']} "
+        f"learned_false_alarms={alarms.get('cnnseg_roi', -1)} seconds={elapsed:.0f}"
     )
 
 

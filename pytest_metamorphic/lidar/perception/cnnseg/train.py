@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from pytest_metamorphic.lidar.perception.cnnseg.data import SCENE_OPTIONS, dataset
 from pytest_metamorphic.lidar.perception.cnnseg.features import CHANNELS, GridSpec
 from pytest_metamorphic.lidar.perception.cnnseg.network import CLASSES
 
@@ -248,6 +247,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     args = parser.parse_args(argv)
     import torch
+
+    # Rendering needs trimesh; imported here so that the network alone (build_network)
+    # loads where only PyTorch is installed (a GPU machine measuring throughput).
+    from pytest_metamorphic.lidar.perception.cnnseg.data import SCENE_OPTIONS, dataset
 
     if args.threads:
         torch.set_num_threads(args.threads)
