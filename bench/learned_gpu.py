@@ -58,7 +58,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=200)
     args = parser.parse_args()
     device = "cuda" if torch.cuda.is_available() else "cpu"
-    name = torch.cuda.get_device_name() if device == "cuda" else f"CPU ({torch.get_num_threads()} threads)"
+    threads = torch.get_num_threads()
+    name = torch.cuda.get_device_name() if device == "cuda" else f"CPU ({threads} threads)"
     torch.manual_seed(0)
     network = Exported.wrap(build_network()).eval().to(device)
     print(f"device: {name}; torch {torch.__version__}")

@@ -46,7 +46,7 @@ from pytest_metamorphic.relations.lidar import (
 
 pytest.importorskip("onnxruntime", reason="onnxruntime is not installed: pip install '.[learned]'")
 
-from pytest_metamorphic.lidar.perception.cnnseg import CNNSegmentation  # noqa: E402
+from pytest_metamorphic.lidar.perception.cnnseg import CNNSegmentation
 
 LIDAR = [HealthCheck.too_slow, HealthCheck.large_base_example, HealthCheck.data_too_large]
 full_cloud = CNNSegmentation(full_cloud=True)

@@ -18,7 +18,7 @@ from scipy.optimize import linear_sum_assignment
 
 from pytest_metamorphic.core.errors import InvalidArgument
 
-__all__ = ["EqualityMatcher", "Matcher", "PredicateMatcher", "one_to_one"]
+__all__ = ["EqualityMatcher", "Matcher", "PredicateMatcher", "matched_pairs", "one_to_one"]
 
 
 @runtime_checkable
@@ -101,3 +101,23 @@ def one_to_one(
     matrix = np.where(compatible, shifted, penalty)
     rows, cols = linear_sum_assignment(matrix)
     return [(int(i), int(j)) for i, j in zip(rows, cols, strict=True) if compatible[i, j]]
+
+
+def matched_pairs(
+    matcher: Matcher, source: Sequence[Any], followup: Sequence[Any]
+) -> list[tuple[int, int]]:
+    """Pairs of ``source`` and ``followup`` elements that ``matcher`` matches.
+
+    One to one (:func:`one_to_one`) unless the matcher says ``exclusive = False``: then
+    every source element takes its best compatible follow-up element, which others may
+    share (a detector whose output jitters may report one object as two pieces in one
+    run and one box in the next; both pieces are still *there*).
+    """
+    if not source or not followup:
+        return []
+    compatible, cost = matcher.pairwise(source, followup)
+    if getattr(matcher, "exclusive", True):
+        return one_to_one(compatible, cost)
+    ranked = np.where(compatible, np.asarray(cost, dtype=float), np.inf)
+    best = np.argmin(ranked, axis=1)
+    return [(int(i), int(j)) for i, j in enumerate(best) if compatible[i, j]]

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.core.matching import one_to_one
+from pytest_metamorphic.core.matching import matched_pairs
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.frame import Frame
@@ -301,8 +301,9 @@ class OthersKept(Relation):
         rows = [
             i for i, box in enumerate(source) if judged[i] and not edit.affects(box, self.clearance)
         ]
-        compatible, cost = self.matcher.pairwise([source[i] for i in rows], found)
-        matched = {rows[r] for r, _ in one_to_one(compatible, cost)}
+        matched = {
+            rows[r] for r, _ in matched_pairs(self.matcher, [source[i] for i in rows], found)
+        }
         lost = [i for i in rows if i not in matched]
         details = {
             "edited": region.describe(),

@@ -259,11 +259,12 @@ def moved_obstacles(
     yaw_tolerance: float | None = None,
     min_points: int | None = None,
     boundary_margin: float | None = None,
+    same_label: bool | None = None,
     scope: ScopeLike = "roi",
 ) -> MovedObstacles:
     """The check for ``symmetry``, with :data:`TURN_TOLERANCES` filling what is not given:
     a quarter turn's (labels compared), or with ``quarter_turns=False`` (rotations by
-    other angles) the loose ones (labels not compared)."""
+    other angles) the loose ones (labels not compared); ``same_label`` overrides."""
     if symmetry not in _CHECKS:
         raise InvalidArgument(f"symmetry={symmetry!r} must be one of {sorted(_CHECKS)}")
     defaults = TURN_TOLERANCES["quarter_turns" if quarter_turns else "any"]
@@ -275,6 +276,6 @@ def moved_obstacles(
         yaw_tolerance=values[2],
         min_points=values[3],  # type: ignore[arg-type]
         boundary_margin=values[4],
-        same_label=quarter_turns,
+        same_label=quarter_turns if same_label is None else same_label,
         scope=scope,
     )

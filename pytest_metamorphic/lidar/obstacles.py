@@ -458,11 +458,14 @@ class IoUMatcher:
 class CenterDistanceMatcher:
     """Pairs boxes whose centres are at most ``max_distance`` metres apart in bird's-eye view.
 
-    Cost is the distance. ``same_label`` as for :class:`IoUMatcher`.
+    Cost is the distance. ``same_label`` as for :class:`IoUMatcher`. ``exclusive=False``
+    lets several boxes share one match (:func:`~pytest_metamorphic.core.matching.matched_pairs`):
+    pieces of one object reported in one output and one box in the other.
     """
 
     max_distance: float = 2.0
     same_label: bool = True
+    exclusive: bool = True
 
     def __post_init__(self) -> None:
         value = self.max_distance
@@ -471,11 +474,13 @@ class CenterDistanceMatcher:
         if not (math.isfinite(value) and value > 0):
             raise InvalidArgument(f"max_distance={value!r} must be a positive number of metres")
         _check_flag(self.same_label, "same_label")
+        _check_flag(self.exclusive, "exclusive")
 
     @property
     def name(self) -> str:
         label = ", same label" if self.same_label else ""
-        return f"centre distance <= {self.max_distance:g} m{label}"
+        shared = "" if self.exclusive else ", pieces share a match"
+        return f"centre distance <= {self.max_distance:g} m{label}{shared}"
 
     def pairwise(
         self, source: Sequence[Any], followup: Sequence[Any]

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.core.matching import Matcher, one_to_one
+from pytest_metamorphic.core.matching import Matcher, matched_pairs
 from pytest_metamorphic.core.relations import (
     _COMPARISONS,
     CheckContext,
@@ -278,8 +278,7 @@ class _Kept(_Scoped):
             source_output, followup_output, context
         )
         rows = np.flatnonzero(judged)
-        compatible, cost = self.matcher.pairwise([source[i] for i in rows], followup)
-        pairs = one_to_one(compatible, cost)
+        pairs = matched_pairs(self.matcher, [source[i] for i in rows], followup)
         matched = {int(rows[r]) for r, _ in pairs}
         unmatched = [int(i) for i in rows if int(i) not in matched]
         details: dict[str, Any] = {
@@ -377,6 +376,45 @@ class _Equal(_Scoped):
         return Verdict(False, self.name, "; ".join(lines) + self._note(details), details)
 
 
+class _Same(_Scoped):
+    """Judged obstacles are the same on both sides up to ``matcher``: each judged obstacle
+    of either output has its own match (one-to-one) among all obstacles of the other."""
+
+    def __init__(self, matcher: Matcher, scope: ObstacleScope) -> None:
+        self.matcher = matcher
+        self.scope = scope
+        self.name = f"same[{matcher.name}; {scope.describe()}]"
+
+    def _unmatched(
+        self, boxes: list[Box], judged: NDArray[np.bool_], other: list[Box]
+    ) -> list[int]:
+        rows = np.flatnonzero(judged)
+        matched = {
+            int(rows[r]) for r, _ in matched_pairs(self.matcher, [boxes[i] for i in rows], other)
+        }
+        return [int(i) for i in rows if int(i) not in matched]
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        source, followup, judged, followup_judged = self._split(
+            source_output, followup_output, context
+        )
+        details: dict[str, Any] = self._unjudged(source, followup, judged, followup_judged)
+        lost = self._unmatched(source, judged, followup)
+        gained = self._unmatched(followup, followup_judged, source)
+        details.update(changed_source=lost, changed_followup=gained)
+        if not lost and not gained:
+            return Verdict(True, self.name, self._note(details).strip(), details)
+        lines = [
+            f"source {source[i].describe()} has no match in follow-up {context.index}"
+            for i in lost[:_SHOWN]
+        ]
+        lines += [
+            f"follow-up {context.index}'s {followup[j].describe()} has no match in the source"
+            for j in gained[:_SHOWN]
+        ]
+        return Verdict(False, self.name, "; ".join(lines) + self._note(details), details)
+
+
 def obstacles_kept(*, matcher: Matcher | None = None, scope: ScopeLike = "roi") -> Relation:
     """MR1's output relation: every judged source obstacle has its own match in ``O'``.
 
@@ -404,11 +442,15 @@ def judged_count(op: str = "<=", *, scope: ScopeLike = "roi") -> Relation:
     return cardinality(op) if chosen.everything else _Count(op, chosen)
 
 
-def judged_equal(*, scope: ScopeLike = "roi") -> Relation:
+def judged_equal(*, scope: ScopeLike = "roi", matcher: Matcher | None = None) -> Relation:
     """``O == O'`` over judged obstacles: each needs an identical one on the other side.
 
     With ``scope="all"`` this is :func:`~pytest_metamorphic.core.relations.equal` (exact,
-    order included), as before scopes existed.
+    order included), as before scopes existed. With a ``matcher`` (a detector whose
+    outputs jitter, e.g. a neural network) "identical" becomes "matched": every judged
+    obstacle of either side needs its own match on the other, one to one.
     """
     chosen = as_scope(scope)
+    if matcher is not None:
+        return _Same(matcher, chosen)
     return equal() if chosen.everything else _Equal(chosen)

@@ -41,11 +41,18 @@ in :func:`lidar_relations`: it tests only detectors that claim translation invar
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pytest_metamorphic.core.engine import MetamorphicRelation
 from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES
 from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.tolerance import (
+    EXACT,
+    LEARNED,
+    Tolerance,
+    ToleranceLike,
+    as_tolerance,
+)
 from pytest_metamorphic.relations.lidar.faults import (
     PACKET_DEGREES,
     CoveredObstaclesKept,
@@ -86,6 +93,8 @@ from pytest_metamorphic.relations.lidar.weather import DEFAULT_VISIBILITIES, adv
 __all__ = [
     "DEFAULT_NOISE",
     "DEFAULT_VISIBILITIES",
+    "EXACT",
+    "LEARNED",
     "PACKET_DEGREES",
     "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
@@ -95,6 +104,7 @@ __all__ = [
     "ObstacleScope",
     "RotatedObstacles",
     "ShiftedObstacles",
+    "Tolerance",
     "adverse_weather",
     "beam_loss",
     "duplication_invariance",
@@ -121,27 +131,40 @@ def lidar_relations(
     noise: NoiseSize = DEFAULT_NOISE,
     rotation: Literal["quarter_turns", "any"] = "quarter_turns",
     scope: ScopeLike = "roi",
+    tolerance: ToleranceLike = "exact",
 ) -> list[MetamorphicRelation]:
     """The whole library, for ``@metamorphic(relations=lidar_relations())``.
 
     ``noise`` is the ``n`` of the three noise relations; ``rotation`` the ``angles`` of
     :func:`rotation_equivariance`; ``scope`` which obstacles the ROI-related relations
-    judge (default: those mostly inside the ROI; ``"all"`` for every obstacle).
+    judge (default: those wholly inside the ROI; ``"all"`` for every obstacle);
+    ``tolerance`` how much the outputs of equivalent inputs may differ: ``"exact"``
+    (geometric pipelines) or ``"learned"`` (neural networks, whose outputs jitter: see
+    :mod:`pytest_metamorphic.lidar.tolerance`).
     """
     as_scope(scope)
+    profile = as_tolerance(tolerance)
+    moved: dict[str, Any] = {}
+    if profile.moved is not None:
+        center, size, yaw, points = profile.moved
+        moved = {"center_tolerance": center, "size_tolerance": size, "yaw_tolerance": yaw,
+                 "min_points": points}  # fmt: skip
+    if profile.moved_same_label is not None:
+        moved["same_label"] = profile.moved_same_label
+    same, kept = profile.same, profile.kept
     return [
-        mr1_subset(n=noise, scope=scope),
+        mr1_subset(n=noise, scope=scope, matcher=kept),
         mr1_cardinality(n=noise, scope=scope),
-        outside_noise_invariance(n=noise, scope=scope),
-        outside_removal(scope=scope),
-        permutation_invariance(),
-        duplication_invariance(),
-        rotation_equivariance(angles=rotation, scope=scope),
-        mirror_symmetry(scope=scope),
+        outside_noise_invariance(n=noise, scope=scope, matcher=same),
+        outside_removal(scope=scope, matcher=same),
+        permutation_invariance(matcher=same),
+        duplication_invariance(matcher=same),
+        rotation_equivariance(angles=rotation, scope=scope, **moved),
+        mirror_symmetry(scope=scope, **moved),
         beam_loss(scope=scope),
         packet_loss(scope=scope),
         range_quantization(scope=scope),
-        object_removal(scope=scope),
-        object_insertion(scope=scope),
+        object_removal(scope=scope, matcher=kept),
+        object_insertion(scope=scope, matcher=kept),
         adverse_weather(scope=scope),
     ]

@@ -40,6 +40,7 @@ def rotation_equivariance(
     yaw_tolerance: float | None = None,
     min_points: int | None = None,
     boundary_margin: float | None = None,
+    same_label: bool | None = None,
     scope: ScopeLike = "roi",
     name: str | None = None,
 ) -> MetamorphicRelation:
@@ -67,6 +68,8 @@ def rotation_equivariance(
     center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin
         Override the defaults (metres, metres, degrees, points, metres); see
         :class:`RotatedObstacles`.
+    same_label : bool, optional
+        Whether a turned obstacle must keep its class (default: for quarter turns).
     scope : "roi", "all" or ObstacleScope
         Which obstacles are compared (default: those mostly inside the ROI).
     """
@@ -81,6 +84,7 @@ def rotation_equivariance(
         yaw_tolerance=yaw_tolerance,
         min_points=min_points,
         boundary_margin=boundary_margin,
+        same_label=same_label,
         scope=scope,
     )
     if quarter:
@@ -108,6 +112,7 @@ def mirror_symmetry(
     yaw_tolerance: float = 1.0,
     min_points: int = 0,
     boundary_margin: float = 0.5,
+    same_label: bool = True,
     scope: ScopeLike = "roi",
     name: str = "cloud and ROI mirrored (y -> -y) => O mirrored",
 ) -> MetamorphicRelation:
@@ -121,7 +126,8 @@ def mirror_symmetry(
     labels equal), obstacles at least ``boundary_margin`` from the ROI's edge (the mirrored
     ROI is rasterised afresh). It catches what rotations cannot: a detector that reports
     its boxes in a frame turned about the sensor (a wrong yaw extrinsic) commutes with
-    every rotation, but not with a reflection.
+    every rotation, but not with a reflection. ``same_label=False``: classes are not
+    compared.
     """
     relation = moved_obstacles(
         "mirror",
@@ -130,6 +136,7 @@ def mirror_symmetry(
         yaw_tolerance=yaw_tolerance,
         min_points=min_points,
         boundary_margin=boundary_margin,
+        same_label=same_label,
         scope=scope,
     )
 

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
+from pytest_metamorphic.core.matching import Matcher
 from pytest_metamorphic.lidar.perturb import DuplicatePoints
 from pytest_metamorphic.lidar.scope import judged_equal
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
@@ -18,15 +19,20 @@ from pytest_metamorphic.strategies import duplicated_points, permuted_points
 __all__ = ["PACKET_POINTS", "duplication_invariance", "permutation_invariance"]
 
 
-def permutation_invariance(*, name: str = "points reordered => O == O'") -> MetamorphicRelation:
+def permutation_invariance(
+    *, matcher: Matcher | None = None, name: str = "points reordered => O == O'"
+) -> MetamorphicRelation:
     """The order of the points in the cloud does not matter, for any obstacle.
 
     Not scoped: reordering touches every point alike, so a detector must give exactly
     the same output everywhere (this and :func:`duplication_invariance` hold for
-    whole-scene detectors as they do for ROI-first ones).
+    whole-scene detectors as they do for ROI-first ones). ``matcher``: compare obstacles
+    by it, both ways, instead of exactly (:data:`~pytest_metamorphic.lidar.tolerance.LEARNED`).
     """
     return MetamorphicRelation(
-        name, lambda frame: permuted_points(_frame(frame)), judged_equal(scope="all")
+        name,
+        lambda frame: permuted_points(_frame(frame)),
+        judged_equal(scope="all", matcher=matcher),
     )
 
 
@@ -35,13 +41,17 @@ PACKET_POINTS = 384
 
 
 def duplication_invariance(
-    *, max_size: int = 100, name: str = "points repeated => O == O'"
+    *,
+    max_size: int = 100,
+    matcher: Matcher | None = None,
+    name: str = "points repeated => O == O'",
 ) -> MetamorphicRelation:
     """Repeating points does not matter.
 
     Follow-ups repeat, in order of shrinking preference: up to ``max_size`` scattered
     points; one packet's worth of consecutive points (:data:`PACKET_POINTS`, a driver
     that sends a packet twice); or the whole sweep (two drivers publishing one topic).
+    ``matcher`` as for :func:`permutation_invariance`.
     """
     _check_size(max_size, "max_size")
 
@@ -66,4 +76,4 @@ def duplication_invariance(
             whole,
         )
 
-    return MetamorphicRelation(name, followup, judged_equal(scope="all"))
+    return MetamorphicRelation(name, followup, judged_equal(scope="all", matcher=matcher))

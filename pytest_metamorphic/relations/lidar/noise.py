@@ -145,16 +145,19 @@ def outside_noise_invariance(
     n: NoiseSize = DEFAULT_NOISE,
     max_size: int = 1000,
     scope: ScopeLike = "roi",
+    matcher: Matcher | None = None,
     name: str = "noise outside ROI => O == O'",
 ) -> MetamorphicRelation:
     """Points outside the ROI change nothing judged: the judged obstacles are equal.
 
     ``n``, ``max_size`` and ``scope`` as for :func:`mr1_subset`. Every judged obstacle of
     either output needs an identical one in the other (order aside); with
-    ``scope="all"`` the two outputs must be equal exactly, order included.
+    ``scope="all"`` the two outputs must be equal exactly, order included. With a
+    ``matcher``, "identical" is "matched", both ways (a detector whose outputs jitter).
     """
     _check_noise(n, max_size)
-    return MetamorphicRelation(name, _noise(n, max_size), judged_equal(scope=scope))
+    relation = judged_equal(scope=scope, matcher=matcher)
+    return MetamorphicRelation(name, _noise(n, max_size), relation)
 
 
 def outside_removal(
@@ -163,6 +166,7 @@ def outside_removal(
     max_size: int = 1000,
     scope: ScopeLike = "roi",
     clearance: float | None = None,
+    matcher: Matcher | None = None,
     name: str = "outside-ROI points removed => O == O'",
 ) -> MetamorphicRelation:
     """Removing points outside the ROI changes nothing judged.
@@ -179,9 +183,10 @@ def outside_removal(
     judged obstacles without any fault, unlike adding sparse noise there. The default is
     5 m with the ROI scope (beyond the reference ground window's 3.5 m) and 0 with
     ``scope="all"``, for ROI-first stacks, where no outside point may matter.
+    ``matcher`` as for :func:`outside_noise_invariance`.
     """
     chosen = as_scope(scope)
-    relation = judged_equal(scope=chosen)
+    relation = judged_equal(scope=chosen, matcher=matcher)
     if method not in ("raster", "exact"):
         raise InvalidArgument(f"method={method!r} must be 'raster' or 'exact'")
     _check_size(max_size, "max_size")

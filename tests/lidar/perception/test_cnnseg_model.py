@@ -13,16 +13,16 @@ import pytest
 
 pytest.importorskip("onnxruntime", reason="onnxruntime is not installed: pip install '.[learned]'")
 
-from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
-from pytest_metamorphic.lidar.perception.cnnseg import (  # noqa: E402
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.perception.cnnseg import (
     DEFAULT_MODEL,
     CNNSegmentation,
     GridSpec,
     OnnxNetwork,
 )
-from pytest_metamorphic.lidar.perception.cnnseg.data import held_out_frame  # noqa: E402
-from pytest_metamorphic.lidar.perception.cnnseg.quality import detection_quality  # noqa: E402
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI  # noqa: E402
+from pytest_metamorphic.lidar.perception.cnnseg.data import held_out_frame
+from pytest_metamorphic.lidar.perception.cnnseg.quality import detection_quality
+from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
 
 GOLDEN = Path(__file__).with_name("cnnseg_golden.json")
 

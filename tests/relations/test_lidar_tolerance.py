@@ -1,0 +1,76 @@
+"""The "learned" tolerance profile: jitter passes, a lost or displaced obstacle does not."""
+
+from __future__ import annotations
+
+import pytest
+
+from pytest_metamorphic import InvalidArgument
+from pytest_metamorphic.core.relations import CheckContext
+from pytest_metamorphic.lidar.cloud import PointCloud
+from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.obstacles import Box, CenterDistanceMatcher
+from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.scope import judged_equal, obstacles_kept
+from pytest_metamorphic.lidar.tolerance import EXACT, LEARNED, Tolerance, as_tolerance
+from pytest_metamorphic.relations.lidar import lidar_relations
+
+ROAD = ROI.from_polygons([[(0, -6), (50, -6), (50, 6), (0, 6)]])
+FRAME = Frame(PointCloud([[1.0, 0.0, 0.0, 0.1]]), roi=ROAD)
+CONTEXT = CheckContext(FRAME, FRAME, {}, 0)
+CAR = Box((20.0, 1.0, -1.0), (4.2, 1.8, 1.5), 0.1, "car")
+PEDESTRIAN = Box((12.0, -3.0, -1.0), (0.5, 0.3, 1.7), 0.0, "pedestrian")
+OFF_ROAD = Box((20.0, 15.0, -1.0), (4.0, 1.8, 1.5), 0.0, "car")
+
+
+def test_matched_equality_forgives_jitter_and_class_but_not_loss_or_displacement() -> None:
+    same = judged_equal(matcher=LEARNED.same)
+    jitter = [CAR.translated(0.12, -0.05), Box((12.1, -3.0, -1.0), (0.6, 0.25, 1.7), 0.3,
+                                                 "cyclist")]  # fmt: skip
+    assert same.check([CAR, PEDESTRIAN], jitter, CONTEXT).holds
+    assert not judged_equal().check([CAR, PEDESTRIAN], jitter, CONTEXT).holds  # exact
+    lost = same.check([CAR, PEDESTRIAN], [CAR], CONTEXT)
+    assert not lost.holds and "source pedestrian at (12.0, -3.0) has no match" in lost.explanation
+    moved = same.check([CAR], [CAR.translated(0.8, 0.0)], CONTEXT)
+    assert not moved.holds
+    assert "follow-up 0's car at (20.8, 1.0) has no match in the source" in moved.explanation
+    # Obstacles outside the ROI are information, as for the exact relation.
+    gone_off_road = same.check([CAR, OFF_ROAD], [CAR], CONTEXT)
+    assert gone_off_road.holds and gone_off_road.details["unjudged_changes"] == 1
+
+
+def test_pieces_of_one_object_share_a_match_but_two_objects_do_not_merge_into_one() -> None:
+    pieces = [PEDESTRIAN.translated(0.1, 0.1), PEDESTRIAN.translated(-0.1, -0.1)]
+    # One to one (the exact profile's matching), the second piece has no partner.
+    exclusive = judged_equal(scope="all", matcher=CenterDistanceMatcher(0.5, same_label=False))
+    assert not exclusive.check([PEDESTRIAN], pieces, CONTEXT).holds
+    # The learned profile: one pedestrian reported as two pieces is still there.
+    assert judged_equal(matcher=LEARNED.same).check([PEDESTRIAN], pieces, CONTEXT).holds
+    kept = obstacles_kept(matcher=LEARNED.kept)
+    assert kept.check(pieces, [PEDESTRIAN], CONTEXT).holds
+    # Two cars 2 m apart merged into one box between them: both are lost.
+    left, right = CAR.translated(0, -1.0), CAR.translated(0, 1.0)
+    merged = Box((20.0, 1.0, -1.0), (4.2, 3.8, 1.5), 0.1, "car")
+    verdict = kept.check([left, right], [merged], CONTEXT)
+    assert not verdict.holds and len(verdict.details["unmatched"]) == 2
+
+
+def test_profiles_and_the_relation_library() -> None:
+    assert as_tolerance("exact") is EXACT and as_tolerance("learned") is LEARNED
+    custom = Tolerance("mine", same=CenterDistanceMatcher(0.2))
+    assert as_tolerance(custom) is custom
+    with pytest.raises(InvalidArgument, match="tolerance='loose' must be"):
+        as_tolerance("loose")  # type: ignore[arg-type]
+    exact = {r.name: r.relation.name for r in lidar_relations()}
+    learned = {r.name: r.relation.name for r in lidar_relations(tolerance="learned")}
+    assert exact.keys() == learned.keys()
+    assert exact["points repeated => O == O'"] == "equal"
+    assert learned["points repeated => O == O'"].startswith("same[centre distance <= 0.5 m")
+    assert (
+        "centre distance <= 0.5 m, same label"
+        in learned["MR1: noise outside ROI => O subset of O'"]
+    )
+    assert "same label" not in learned["cloud and ROI mirrored (y -> -y) => O mirrored"]
+    assert (
+        "centre<=0.5 m, size<=0.6 m, yaw<=20 deg"
+        in learned["cloud and ROI turned (quarter_turns) => O turned"]
+    )
