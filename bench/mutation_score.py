@@ -73,13 +73,23 @@ DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "
 KITTI = DATA / "kitti_openpcdet" / "training"
 GROUND_Z = -1.73
 EXAMPLE_LINES = 14
-# Relations the learned detector with ROI-only features must satisfy (by name prefix).
+# Relations the learned detector with ROI-only features claims, under the "learned"
+# tolerance (by name prefix). Not claimed: insertion (objects are put up to 1.5x as far as
+# they were seen, past the network's 40 m grid), weather (it never saw droplet echoes: a
+# real weakness, reported by examples/test_learned_detector.py), turns by any angle.
 LEARNED_HOLDS = (
     "MR1: noise outside ROI",
     "MR1 (paper's check)",
     "noise outside ROI => O == O'",
     "outside-ROI points removed",
     "points reordered",
+    "points repeated",
+    "cloud and ROI turned (quarter_turns)",
+    "cloud and ROI mirrored",
+    "beams missing",
+    "packets lost",
+    "ranges quantized",
+    "an object removed",
 )
 
 
@@ -192,6 +202,11 @@ def main() -> None:
     both = st.one_of(real, synthetic)
     suite = [(relation, both) for relation in lidar_relations(scope=args.scope)]
     suite.append((rotation_equivariance(angles="any", scope=args.scope), synthetic))
+    # The learned detector is judged with the tolerance its jitter needs (same order).
+    learned_suite = [
+        (relation, both) for relation in lidar_relations(scope=args.scope, tolerance="learned")
+    ]
+    learned_suite.append(suite[-1])
     short = [f"R{i + 1}" for i in range(len(suite))]
 
     correct: dict[str, Any] = {
@@ -213,7 +228,9 @@ def main() -> None:
             ("n/a", "")
             if not _expected(label, relation, index == len(suite) - 1)
             else run_relation(system, relation, source, args.max_examples)
-            for index, (relation, source) in enumerate(suite)
+            for index, (relation, source) in enumerate(
+                learned_suite if label == "cnnseg_roi" else suite
+            )
         ]
         marks = " ".join(
             f"{code}:{status}" for code, (status, _) in zip(short, results[label], strict=True)
