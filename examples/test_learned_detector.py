@@ -12,10 +12,14 @@ configurations:
 * ``full_cloud=False``: features from the ROI's points alone (the fix): nothing outside
   the ROI reaches the network.
 
-A network is never exactly equivariant: turning or mirroring the sweep changes its maps a
-little, boxes move by centimetres and a border cell may flip. The relations below are
-those its training and design make hold exactly; see the README ("Testing a learned
-detector") for what the others report on it and why.
+A network is never exactly equivariant: turning or mirroring the sweep, repeating points,
+changes its maps a little; boxes move by centimetres, a border cell flips, a pedestrian
+comes out in two pieces. The relations therefore run with the *learned* tolerance
+(``lidar_relations(tolerance="learned")``, :mod:`pytest_metamorphic.lidar.tolerance`): a
+violation is an obstacle gone or displaced by more than 0.5 m, never jitter. With it the
+ROI-feature model satisfies every relation but two it does not claim: object insertion
+(objects are put up to 1.5 times as far as they were seen, past the network's 40 m grid)
+and weather, which shows a real weakness below (it never saw rain in training).
 
     pytest examples/test_learned_detector.py                 # the Hypothesis tests
     pytest examples/test_learned_detector.py --mt-campaign   # + the paper's table on it
@@ -36,13 +40,8 @@ from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.lidar.campaign import mr1_campaign
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.relations.lidar import (
-    mr1_cardinality,
-    mr1_subset,
-    outside_noise_invariance,
-    outside_removal,
-    permutation_invariance,
-)
+from pytest_metamorphic.lidar.tolerance import LEARNED
+from pytest_metamorphic.relations.lidar import adverse_weather, lidar_relations, mr1_subset
 
 pytest.importorskip("onnxruntime", reason="onnxruntime is not installed: pip install '.[learned]'")
 
@@ -53,20 +52,21 @@ full_cloud = CNNSegmentation(full_cloud=True)
 roi_only = CNNSegmentation(full_cloud=False)
 
 
+CLAIMED = [
+    relation
+    for relation in lidar_relations(tolerance="learned")
+    if not relation.name.startswith(("an object inserted", "fog or rain"))
+]
+
+
 @settings(max_examples=10, suppress_health_check=LIDAR, deadline=None)
 @metamorphic(
     source=mst.scene_frames(),
-    relations=[
-        mr1_subset(),
-        mr1_cardinality(),
-        outside_noise_invariance(),
-        outside_removal(),
-        permutation_invariance(),
-    ],
+    relations=CLAIMED,
     followups=1,
     batch=True,  # the source and its follow-ups go through the network as one batch
 )
-def test_roi_features_satisfy_the_outside_roi_relations(frames: list[Frame]) -> list[list[Box]]:
+def test_roi_features_satisfy_the_relation_library(frames: list[Frame]) -> list[list[Box]]:
     return roi_only.detect_batch(frames)
 
 
@@ -74,11 +74,27 @@ def test_mr1_catches_features_built_from_the_whole_sweep() -> None:
     # Derandomized: a test that asserts a fault is found must not depend on the seed.
     @settings(max_examples=40, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
-    @metamorphic(source=mst.scene_frames(), relations=[mr1_subset()], followups=2, batch=True)
+    @metamorphic(source=mst.scene_frames(), relations=[mr1_subset(matcher=LEARNED.kept)],
+                 followups=2, batch=True)  # fmt: skip
     def check(frames: list[Frame]) -> list[list[Box]]:
         return full_cloud.detect_batch(frames)
 
+    # Two points 39 m away, off the road, move a car near the ROI's edge by 0.6 m.
     with pytest.raises(MetamorphicViolation, match="has no match in follow-up"):
+        check()
+
+
+def test_rain_makes_the_network_lose_a_pedestrian_it_still_sees() -> None:
+    # The network was trained on clear sweeps; droplet echoes within 22 m of the sensor
+    # are new to it. A real weakness: a pedestrian keeping 338 of its 342 returns is lost.
+    @settings(max_examples=50, database=None, phases=[Phase.generate], deadline=None,
+              derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
+    @metamorphic(source=mst.scene_frames(), relations=[adverse_weather()], followups=1,
+                 batch=True)  # fmt: skip
+    def check(frames: list[Frame]) -> list[list[Box]]:
+        return roi_only.detect_batch(frames)
+
+    with pytest.raises(MetamorphicViolation, match="lost although"):
         check()
 
 
@@ -86,8 +102,10 @@ def test_mr1_catches_features_built_from_the_whole_sweep() -> None:
 # 10 / 100 / 1000 points outside the ROI, default ROI scope. bench/learned.py runs 1000.
 SOURCES = 200
 test_mr1_cnnseg_full_cloud = campaign_test(
-    mr1_campaign(full_cloud, name="MR1 cnnseg full_cloud=True", sources=SOURCES)
+    mr1_campaign(full_cloud, name="MR1 cnnseg full_cloud=True", sources=SOURCES,
+                 matcher=LEARNED.kept)  # fmt: skip
 )
 test_mr1_cnnseg_roi_only = campaign_test(
-    mr1_campaign(roi_only, name="MR1 cnnseg full_cloud=False", sources=SOURCES)
+    mr1_campaign(roi_only, name="MR1 cnnseg full_cloud=False", sources=SOURCES,
+                 matcher=LEARNED.kept)  # fmt: skip
 )

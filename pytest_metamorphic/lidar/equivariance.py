@@ -53,7 +53,8 @@ class MovedObstacles(Relation):
     ``same_label``) with the centre within ``center_tolerance``, length and width each
     within ``size_tolerance`` and, for elongated boxes (length - width > 0.3 m), the heading within
     ``yaw_tolerance`` degrees modulo 180 (a box's front is not defined); and each clear
-    follow-up obstacle needs its own such source obstacle. With a ``scope``
+    follow-up obstacle needs its own such source obstacle (with ``exclusive=False``, any
+    such obstacle: pieces of one object may share it). With a ``scope``
     (:mod:`pytest_metamorphic.lidar.scope`, default the ROI) only obstacles it judges are
     clear; others are counted in ``unjudged`` details, as information.
     """
@@ -67,11 +68,14 @@ class MovedObstacles(Relation):
         min_points: int,
         boundary_margin: float,
         same_label: bool = True,
+        exclusive: bool = True,
         scope: ScopeLike = "roi",
     ) -> None:
         self.scope: ObstacleScope = as_scope(scope)
-        if not isinstance(same_label, bool):
-            raise InvalidArgument(f"same_label={same_label!r} must be True or False")
+        for flag, value in (("same_label", same_label), ("exclusive", exclusive)):
+            if not isinstance(value, bool):
+                raise InvalidArgument(f"{flag}={value!r} must be True or False")
+        self.exclusive = exclusive
         for label, value in (
             ("center_tolerance", center_tolerance),
             ("size_tolerance", size_tolerance),
@@ -90,7 +94,8 @@ class MovedObstacles(Relation):
         self.same_label = same_label
         self.name = (
             f"{self.moved}(centre<={center_tolerance:g} m, size<={size_tolerance:g} m, "
-            f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''}; "
+            f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''}"
+            f"{'' if exclusive else ', pieces share a match'}; "
             f"{self.scope.describe()})"
         )
 
@@ -179,6 +184,8 @@ class MovedObstacles(Relation):
             for col, other in enumerate(others):
                 distance, ok = self._compatible(boxes[index], other)
                 compatible[row, col], cost[row, col] = ok, distance
+        if not self.exclusive:  # pieces of one object may share their partner
+            return [index for row, index in enumerate(chosen) if not compatible[row].any()]
         pairs = one_to_one(compatible, cost)
         matched = {chosen[row] for row, _ in pairs}
         return [index for index in chosen if index not in matched]
@@ -260,6 +267,7 @@ def moved_obstacles(
     min_points: int | None = None,
     boundary_margin: float | None = None,
     same_label: bool | None = None,
+    exclusive: bool = True,
     scope: ScopeLike = "roi",
 ) -> MovedObstacles:
     """The check for ``symmetry``, with :data:`TURN_TOLERANCES` filling what is not given:
@@ -277,5 +285,6 @@ def moved_obstacles(
         min_points=values[3],  # type: ignore[arg-type]
         boundary_margin=values[4],
         same_label=quarter_turns if same_label is None else same_label,
+        exclusive=exclusive,
         scope=scope,
     )

@@ -151,6 +151,8 @@ def lidar_relations(
                  "min_points": points}  # fmt: skip
     if profile.moved_same_label is not None:
         moved["same_label"] = profile.moved_same_label
+    if profile.moved_shared:
+        moved["exclusive"] = False
     same, kept = profile.same, profile.kept
     return [
         mr1_subset(n=noise, scope=scope, matcher=kept),

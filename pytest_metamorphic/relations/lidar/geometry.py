@@ -41,6 +41,7 @@ def rotation_equivariance(
     min_points: int | None = None,
     boundary_margin: float | None = None,
     same_label: bool | None = None,
+    exclusive: bool = True,
     scope: ScopeLike = "roi",
     name: str | None = None,
 ) -> MetamorphicRelation:
@@ -70,6 +71,9 @@ def rotation_equivariance(
         :class:`RotatedObstacles`.
     same_label : bool, optional
         Whether a turned obstacle must keep its class (default: for quarter turns).
+    exclusive : bool
+        Each obstacle needs its *own* partner (default); False lets pieces of one object
+        share one (a network that splits an object in one output and not the other).
     scope : "roi", "all" or ObstacleScope
         Which obstacles are compared (default: those mostly inside the ROI).
     """
@@ -85,6 +89,7 @@ def rotation_equivariance(
         min_points=min_points,
         boundary_margin=boundary_margin,
         same_label=same_label,
+        exclusive=exclusive,
         scope=scope,
     )
     if quarter:
@@ -113,6 +118,7 @@ def mirror_symmetry(
     min_points: int = 0,
     boundary_margin: float = 0.5,
     same_label: bool = True,
+    exclusive: bool = True,
     scope: ScopeLike = "roi",
     name: str = "cloud and ROI mirrored (y -> -y) => O mirrored",
 ) -> MetamorphicRelation:
@@ -127,7 +133,7 @@ def mirror_symmetry(
     ROI is rasterised afresh). It catches what rotations cannot: a detector that reports
     its boxes in a frame turned about the sensor (a wrong yaw extrinsic) commutes with
     every rotation, but not with a reflection. ``same_label=False``: classes are not
-    compared.
+    compared; ``exclusive`` as for :func:`rotation_equivariance`.
     """
     relation = moved_obstacles(
         "mirror",
@@ -137,6 +143,7 @@ def mirror_symmetry(
         min_points=min_points,
         boundary_margin=boundary_margin,
         same_label=same_label,
+        exclusive=exclusive,
         scope=scope,
     )
 
