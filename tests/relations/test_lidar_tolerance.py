@@ -71,6 +71,25 @@ def test_profiles_and_the_relation_library() -> None:
     )
     assert "same label" not in learned["cloud and ROI mirrored (y -> -y) => O mirrored"]
     assert (
-        "centre<=0.5 m, size<=0.6 m, yaw<=20 deg"
+        "centre<=0.5 m, size<=100 m, yaw<=90 deg"
         in learned["cloud and ROI turned (quarter_turns) => O turned"]
     )
+
+
+def test_a_mirrored_object_in_two_pieces_keeps_its_partner_under_the_learned_profile() -> None:
+    from pytest_metamorphic.lidar.equivariance import moved_obstacles
+
+    cyclist = Box((12.0, -3.0, -1.0), (1.9, 0.6, 1.5), 0.7, "cyclist", points=800)
+    mirrored = cyclist.mirrored()
+    pieces = [
+        Box(mirrored.center, (1.9, 0.5, 1.5), mirrored.yaw, "cyclist", points=580),
+        Box((12.1, 3.1, -1.0), (1.7, 0.55, 1.2), mirrored.yaw, "cyclist", points=290),
+    ]
+    context = CheckContext(FRAME, FRAME, {"mirrored": "y -> -y"}, 0)
+    strict = moved_obstacles("mirror", center_tolerance=0.5, size_tolerance=0.6, yaw_tolerance=20)
+    verdict = strict.check([cyclist], pieces, context)
+    assert not verdict.holds and verdict.details["extra"] == ["cyclist at (12.1, 3.1)"]
+    shared = moved_obstacles("mirror", center_tolerance=0.5, size_tolerance=0.6,
+                             yaw_tolerance=20, exclusive=False)  # fmt: skip
+    assert shared.check([cyclist], pieces, context).holds
+    assert not shared.check([cyclist], [pieces[0].translated(0.0, 1.0)], context).holds
