@@ -150,3 +150,14 @@ def test_bad_arguments_are_named() -> None:
         CNNSegParams(objectness_thresh=1.5)
     with pytest.raises(InvalidArgument, match="batch_size=0"):
         CNNSegmentation(network=FakeNetwork((0, 0), (0, 0, 0, 0)), batch_size=0)
+
+
+def test_objects_the_grid_cuts_are_dropped() -> None:
+    # A car whose returns reach x = 39.5 m: within 1 m of the grid's 40 m border.
+    network = FakeNetwork(centre=(40.0, 0.0), region=(37, 40, -2, 2))
+    points = PointCloud(_street(_rear_face(39.5, 0.0)))
+    assert CNNSegmentation(network=network)(points) == []
+    kept = CNNSegmentation(network=network, params=CNNSegParams(edge_margin=0.0))(points)
+    assert [box.label for box in kept] == ["car"]
+    with pytest.raises(InvalidArgument, match="edge_margin=-1 must be >= 0"):
+        CNNSegParams(edge_margin=-1)

@@ -12,7 +12,8 @@ section 9, ``modules/perception/lidar/lib/segmentation/cnnseg``):
 3. **Network** (:mod:`.network`): per-cell objectness, centre offset, class, top height.
 4. **Cluster2D** (:mod:`.cluster2d`): object cells grouped by their predicted centres.
 5. **Objects**: each group's valid points no higher than its predicted top plus
-   ``height_thresh``; groups with fewer than ``min_points`` are dropped. The box is the
+   ``height_thresh``; groups with fewer than ``min_points``, or reaching within
+   ``edge_margin`` of the grid's border (cut by it), are dropped. The box is the
    project's MinBox of those points (the visible outline, oriented), completed to the
    far side the sensor cannot see so that it is symmetric about the network's predicted
    centre (a car seen from behind is a 1.8 x 0.3 m outline; its predicted centre, two
@@ -62,6 +63,11 @@ class CNNSegParams:
         Points more than this above the predicted top are left out (Apollo: 0.5 m).
     min_points : int
         Objects with fewer points are dropped (Apollo's ``min_pts_num``: 3).
+    edge_margin : float
+        Objects with a point within this many metres of the grid's border are dropped:
+        the grid cuts them, so the network sees a fragment (Apollo drops objects beyond
+        its ``confidence_range`` for the same reason). Without it a car straddling the
+        40 m border came back from a quarter turn as a "cyclist" 0.7 m away.
     ground : GroundParams
         The ground model that removes ground returns from the valid points.
     """
@@ -69,6 +75,7 @@ class CNNSegParams:
     objectness_thresh: float = 0.5
     height_thresh: float = 0.5
     min_points: int = 3
+    edge_margin: float = 1.0
     ground: GroundParams = field(default_factory=GroundParams)
 
     def __post_init__(self) -> None:
@@ -80,6 +87,8 @@ class CNNSegParams:
             raise InvalidArgument(f"min_points={self.min_points!r} must be an int")
         if self.min_points < 1:
             raise InvalidArgument(f"min_points={self.min_points!r} must be >= 1")
+        if not (math.isfinite(self.edge_margin) and self.edge_margin >= 0):
+            raise InvalidArgument(f"edge_margin={self.edge_margin!r} must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -252,7 +261,10 @@ class CNNSegmentation:
         keep = (point_object >= 0) & (prepared.valid[:, 2] <= top)
         members, ids = prepared.valid[keep], point_object[keep]
         sizes = np.bincount(ids, minlength=count)
-        kept = np.flatnonzero(sizes >= params.min_points)
+        reach = np.zeros(count)
+        np.maximum.at(reach, ids, np.abs(members[:, :2]).max(axis=1))
+        inner = reach < grid.range - params.edge_margin
+        kept = np.flatnonzero((sizes >= params.min_points) & inner)
         if len(kept) == 0:
             return labels, []
         renumber = np.full(count, -1, dtype=np.intp)
