@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic import InvalidArgument, metamorphic, relations
 from pytest_metamorphic.core.batching import batched, supports_batches
-from pytest_metamorphic.core.campaign import Campaign, run_campaign
+from pytest_metamorphic.core.campaign import run_campaign
 from pytest_metamorphic.core.errors import MetamorphicViolation, SystemUnderTestCrash
-from tests.core.campaign.test_campaign import Lossy, followup, source
+from tests.core.campaign.test_campaign import Lossy, campaign, followup, source
 
 
 class BatchLossy(Lossy):
@@ -37,29 +37,14 @@ class BatchLossy(Lossy):
         return [self(scene) for scene in scenes]
 
 
-def toy(system, sources: int = 12) -> Campaign:  # type: ignore[no-untyped-def]
-    return Campaign(
-        name="toy MR1",
-        source=source,
-        followup=followup,
-        system=system,
-        relation=relations.subset(),
-        sizes=(10, 100, 1000),
-        sources=sources,
-        followups=3,
-        seed=7,
-        category=str,
-    )
-
-
 def test_a_campaign_runs_a_batch_system_in_batches_with_the_same_log(tmp_path: Path) -> None:
-    plain = run_campaign(toy(Lossy()), log=tmp_path / "plain.jsonl")
-    system = BatchLossy(batch_size=4)
+    plain = run_campaign(campaign(Lossy(), sources=12), log=tmp_path / "plain.jsonl")
+    system = BatchLossy(batch_size=3)
     assert supports_batches(system)
-    batched_result = run_campaign(toy(system), log=tmp_path / "batched.jsonl")
-    # 1 source + 9 follow-ups per source: batches of 4, 4, 2 (the source in the first).
-    assert system.batches == [4, 4, 2] * 12
-    assert batched_result.sut_calls == plain.sut_calls == 12 * 10
+    batched_result = run_campaign(campaign(system, sources=12), log=tmp_path / "batched.jsonl")
+    # 1 source + 2 sizes x 2 follow-ups per source: batches of 3 and 2 (the source first).
+    assert system.batches == [3, 2] * 12
+    assert batched_result.sut_calls == plain.sut_calls == 12 * 5
     assert batched_result.outcome_json() == plain.outcome_json()
     assert (tmp_path / "plain.jsonl").read_text() == (tmp_path / "batched.jsonl").read_text()
 
@@ -71,12 +56,12 @@ def test_a_crashing_batch_is_rerun_one_input_at_a_time(tmp_path: Path) -> None:
     )
     scenes = [first]
     system = BatchLossy(batch_size=4, crash_on=first[2])
-    result = run_campaign(toy(system, sources=1), log=tmp_path / "log.jsonl")
+    result = run_campaign(campaign(system, sources=1), log=tmp_path / "log.jsonl")
     record = json.loads((tmp_path / "log.jsonl").read_text().splitlines()[1])
     crashes = [pair for pair in record["pairs"] if "crash" in pair]
     assert [(p["size"], p["followup"]) for p in crashes] == [(10, 0)]
     assert crashes[0]["crash"] == f"RuntimeError: bad noise {scenes[0][2]}"
-    assert sum("holds" in pair for pair in record["pairs"]) == 8
+    assert sum("holds" in pair for pair in record["pairs"]) == 3
     assert result.sizes[10].crashes == 1
 
 
