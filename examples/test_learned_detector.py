@@ -102,10 +102,12 @@ def test_rain_makes_the_network_lose_a_pedestrian_it_still_sees() -> None:
 # 10 / 100 / 1000 points outside the ROI, default ROI scope. bench/learned.py runs 1000.
 SOURCES = 200
 test_mr1_cnnseg_full_cloud = campaign_test(
-    mr1_campaign(full_cloud, name="MR1 cnnseg full_cloud=True", sources=SOURCES,
-                 matcher=LEARNED.kept)  # fmt: skip
+    mr1_campaign(
+        full_cloud, name="MR1 cnnseg full_cloud=True", sources=SOURCES, matcher=LEARNED.kept
+    ),
 )
 test_mr1_cnnseg_roi_only = campaign_test(
-    mr1_campaign(roi_only, name="MR1 cnnseg full_cloud=False", sources=SOURCES,
-                 matcher=LEARNED.kept)  # fmt: skip
+    mr1_campaign(
+        roi_only, name="MR1 cnnseg full_cloud=False", sources=SOURCES, matcher=LEARNED.kept
+    ),
 )

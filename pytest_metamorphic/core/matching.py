@@ -25,7 +25,10 @@ __all__ = ["EqualityMatcher", "Matcher", "PredicateMatcher", "matched_pairs", "o
 class Matcher(Protocol):
     """Decides which (source element, follow-up element) pairs may be matched."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """What the matcher requires, for messages (an attribute or a property)."""
+        ...
 
     def pairwise(
         self, source: Sequence[Any], followup: Sequence[Any]

@@ -72,9 +72,9 @@ class MovedObstacles(Relation):
         scope: ScopeLike = "roi",
     ) -> None:
         self.scope: ObstacleScope = as_scope(scope)
-        for flag, value in (("same_label", same_label), ("exclusive", exclusive)):
-            if not isinstance(value, bool):
-                raise InvalidArgument(f"{flag}={value!r} must be True or False")
+        for flag, setting in (("same_label", same_label), ("exclusive", exclusive)):
+            if not isinstance(setting, bool):
+                raise InvalidArgument(f"{flag}={setting!r} must be True or False")
         self.exclusive = exclusive
         for label, value in (
             ("center_tolerance", center_tolerance),

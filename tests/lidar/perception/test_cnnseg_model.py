@@ -45,8 +45,12 @@ def golden_record() -> dict:
         "object_cells": int(np.count_nonzero(run.cell_labels >= 0)),
         "objectness_sum": float(run.output.objectness.sum()),
         "boxes": [
-            {"label": b.label, "center": [round(v, 3) for v in b.center],
-             "size": [round(v, 3) for v in b.size], "points": b.points}  # fmt: skip
+            {
+                "label": b.label,
+                "center": [round(v, 3) for v in b.center],
+                "size": [round(v, 3) for v in b.size],
+                "points": b.points,
+            }
             for b in run.boxes
         ],
     }
