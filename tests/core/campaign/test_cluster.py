@@ -64,6 +64,11 @@ def killer(value: tuple[int, ...]) -> list[int]:
 POISON = source(np.random.default_rng([5, 11]), 11)
 
 
+def lossy_batches(values: list[tuple[int, ...]]) -> list[list[int]]:
+    """``lossy`` as a batch system: one call per batch of inputs."""
+    return [lossy(value) for value in values]
+
+
 def toy(system=lossy, *, sources: int = 40, name: str = "toy") -> Campaign:
     return Campaign(
         name=name,
@@ -107,6 +112,14 @@ def test_a_cluster_run_equals_the_one_process_run(client, tmp_path: Path) -> Non
     single = run_campaign(campaign, cluster=client, batch_size=1)
     assert single.outcome_json() == alone.outcome_json()
     assert single.execution[0]["units"] == 40
+
+
+def test_a_batch_system_on_the_cluster_gives_the_one_process_result(client) -> None:
+    from pytest_metamorphic.core.batching import batched
+
+    alone = run_campaign(toy())
+    spread = run_campaign(toy(batched(lossy_batches, batch_size=3)), cluster=client)
+    assert spread.outcome_json() == alone.outcome_json()
 
 
 def test_a_shard_runs_only_its_sources_on_the_cluster(client) -> None:
