@@ -59,7 +59,7 @@ CLAIMED = [
 ]
 
 
-@settings(max_examples=10, suppress_health_check=LIDAR, deadline=None)
+@settings(max_examples=5, suppress_health_check=LIDAR, deadline=None)  # ~50 ms per call
 @metamorphic(
     source=mst.scene_frames(),
     relations=CLAIMED,
@@ -86,7 +86,8 @@ def test_mr1_catches_features_built_from_the_whole_sweep() -> None:
 
 def test_rain_makes_the_network_lose_a_pedestrian_it_still_sees() -> None:
     # The network was trained on clear sweeps; droplet echoes within 22 m of the sensor
-    # are new to it. A real weakness: a pedestrian keeping 338 of its 342 returns is lost.
+    # are new to it. A real weakness: in rain of 50 m visibility a pedestrian 8 m away
+    # keeping 527 of its 534 returns is lost, and the echoes come out as 9 new obstacles.
     @settings(max_examples=50, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
     @metamorphic(source=mst.scene_frames(), relations=[adverse_weather()], followups=1,
