@@ -76,9 +76,12 @@ KITTI = DATA / "kitti_openpcdet" / "training"
 GROUND_Z = -1.73
 EXAMPLE_LINES = 14
 # Relations the learned detector with ROI-only features claims, under the "learned"
-# tolerance (by name prefix). Not claimed: insertion (objects are put up to 1.5x as far as
-# they were seen, past the network's 40 m grid), weather (it never saw droplet echoes: a
-# real weakness, reported by examples/test_learned_detector.py), turns by any angle.
+# tolerance (by name prefix). Not claimed: quarter turns and the mirror (a network is not
+# equivariant by construction; augmentation makes violations rare, and those found are
+# real: a cyclist called a car after a 180-degree turn, its box 0.86 m away; a pedestrian
+# found only in the mirrored sweep), insertion (objects are put up to 1.5x as far as they
+# were seen, past the network's 40 m grid), weather (it never saw droplet echoes: a real
+# weakness, shown by examples/test_learned_detector.py), turns by any angle.
 LEARNED_HOLDS = (
     "MR1: noise outside ROI",
     "MR1 (paper's check)",
@@ -86,8 +89,6 @@ LEARNED_HOLDS = (
     "outside-ROI points removed",
     "points reordered",
     "points repeated",
-    "cloud and ROI turned (quarter_turns)",
-    "cloud and ROI mirrored",
     "beams missing",
     "packets lost",
     "ranges quantized",
