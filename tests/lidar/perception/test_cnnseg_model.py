@@ -90,6 +90,16 @@ def test_it_finds_nine_in_ten_road_users_within_40_m_on_held_out_scenes() -> Non
     assert loose["pedestrian"].recall >= 0.9 and loose["pedestrian"].precision >= 0.8
 
 
+def test_a_detector_travels_to_other_processes_without_its_session() -> None:
+    import pickle
+
+    used = CNNSegmentation(False)
+    used(frame(0))  # builds the onnxruntime session, which cannot be pickled
+    copy = pickle.loads(pickle.dumps(used))
+    assert copy.network.path == DEFAULT_MODEL and copy.full_cloud is False
+    assert copy(frame(0)) == used(frame(0))
+
+
 def test_batches_give_the_boxes_of_single_frames() -> None:
     frames = [frame(i) for i in range(3)]
     assert detector(True).detect_batch(frames) == [detector(True)(f) for f in frames]

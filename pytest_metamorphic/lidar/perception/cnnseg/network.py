@@ -70,10 +70,13 @@ class OnnxNetwork:
         return f"OnnxNetwork({str(self.path)!r}, threads={self.threads})"
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"path": self.path, "threads": self.threads}
+        # The shipped model travels as "the shipped model": a worker finds its own copy
+        # wherever the package is installed there.
+        shipped = self.path == DEFAULT_MODEL
+        return {"path": None if shipped else self.path, "threads": self.threads}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.path = state["path"]
+        self.path = DEFAULT_MODEL if state["path"] is None else state["path"]
         self.threads = state["threads"]
         self._session = None
         self._grid = None
