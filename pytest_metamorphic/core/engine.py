@@ -459,7 +459,7 @@ class _FixturedBatch:
         self.fn, self.fixtures, self.batch_size = fn, fixtures, batch_size
 
     def __call__(self, value: Any) -> Any:
-        return check_batch_outputs(self.fn([value], **self.fixtures), 1, self.fn)[0]
+        return _SingleOfBatch(self.fn)(value, **self.fixtures)
 
     def run_batch(self, values: Sequence[Any]) -> Any:
         return self.fn(list(values), **self.fixtures)
