@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ import pytest
 
 pytest.importorskip("onnxruntime", reason="onnxruntime is not installed: pip install '.[learned]'")
 
+from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.perception.cnnseg import (
     DEFAULT_MODEL,
@@ -123,3 +125,14 @@ def test_the_detector_ignores_the_order_of_points() -> None:
     shuffled = source.with_cloud(source.cloud[order])
     for full_cloud in (True, False):
         assert detector(full_cloud)(shuffled) == detector(full_cloud)(source)
+
+
+def test_a_file_that_is_not_the_model_is_named(tmp_path: Path) -> None:
+    garbage = tmp_path / "weights.onnx"
+    garbage.write_bytes(b"\x00not a model")
+    with pytest.raises(InvalidArgument, match=r"weights\.onnx' is not a usable ONNX model"):
+        CNNSegmentation(network=str(garbage))(frame(0))
+    fifo = tmp_path / "pipe.onnx"
+    os.mkfifo(fifo)  # never opened: a FIFO is no model file, and nothing blocks on it
+    with pytest.raises(InvalidArgument, match=r"pipe\.onnx' is not a regular file"):
+        OnnxNetwork(fifo)

@@ -57,7 +57,8 @@ class OnnxNetwork:
     def __init__(self, path: str | os.PathLike[str] | None = None, *, threads: int | None = 1):
         self.path = Path(DEFAULT_MODEL if path is None else path)
         if not self.path.is_file():
-            raise InvalidArgument(f"model file {str(self.path)!r} does not exist")
+            what = "is not a regular file" if self.path.exists() else "does not exist"
+            raise InvalidArgument(f"model file {str(self.path)!r} {what}")
         if threads is not None and (
             isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
         ):
