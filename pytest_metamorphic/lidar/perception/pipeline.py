@@ -54,10 +54,17 @@ from pytest_metamorphic.lidar.perception.clustering import ClusterParams, Cluste
 from pytest_metamorphic.lidar.perception.ground import GroundParams, ground_heights
 from pytest_metamorphic.lidar.perception.minbox import HullStart, MinBox, min_boxes
 
-__all__ = ["PerceptionParams", "ReferencePerception", "Stages", "sweep_and_roi"]
+__all__ = [
+    "MIN_EXTENT",
+    "PerceptionParams",
+    "ReferencePerception",
+    "Stages",
+    "box_order",
+    "sweep_and_roi",
+]
 
 # Apollo's SetDefaultValue widens degenerate extents to 1 mm; Box needs sizes > 0.
-_MIN_EXTENT = 1e-3
+MIN_EXTENT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -256,7 +263,7 @@ class ReferencePerception:
                 shapes, classes, bottom[kept].tolist(), top[kept].tolist(), strict=True
             )
         ]
-        return sorted(boxes, key=_sort_key)
+        return sorted(boxes, key=box_order)
 
     def review_boxes(self, boxes: list[Box], in_roi: NDArray[np.float32]) -> list[Box]:
         """The output, given the ROI's returns, ground included (the reference: as built)."""
@@ -326,9 +333,9 @@ def _member_points(
 
 def _to_box(shape: MinBox, label: str, bottom: float, top: float) -> Box:
     """The output box: MinBox's footprint, spanning the object's points in z."""
-    length = max(shape.length, _MIN_EXTENT)
-    width = max(shape.width, _MIN_EXTENT)
-    height = max(top - bottom, _MIN_EXTENT)
+    length = max(shape.length, MIN_EXTENT)
+    width = max(shape.width, MIN_EXTENT)
+    height = max(top - bottom, MIN_EXTENT)
     x, y, _ = shape.center
     return Box(
         center=(x, y, (bottom + top) / 2.0),
@@ -339,5 +346,7 @@ def _to_box(shape: MinBox, label: str, bottom: float, top: float) -> Box:
     )
 
 
-def _sort_key(box: Box) -> tuple[float, ...]:
+def box_order(box: Box) -> tuple[float, ...]:
+    """Sort key of a detector's output: centre x, y, z, then size and yaw (equal inputs
+    give equal lists)."""
     return (*box.center, *box.size, box.yaw)

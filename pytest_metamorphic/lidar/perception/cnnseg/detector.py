@@ -44,11 +44,9 @@ from pytest_metamorphic.lidar.perception.cnnseg.features import GridSpec, bev_fe
 from pytest_metamorphic.lidar.perception.cnnseg.network import CLASSES, NetworkOutput, OnnxNetwork
 from pytest_metamorphic.lidar.perception.ground import GroundParams, ground_heights
 from pytest_metamorphic.lidar.perception.minbox import min_boxes
-from pytest_metamorphic.lidar.perception.pipeline import sweep_and_roi
+from pytest_metamorphic.lidar.perception.pipeline import MIN_EXTENT, box_order, sweep_and_roi
 
 __all__ = ["CNNSegParams", "CNNSegmentation", "Segmentation"]
-
-_MIN_EXTENT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -320,7 +318,7 @@ class CNNSegmentation:
                     shape.points,
                 )
             )
-        return labels, sorted(boxes, key=_sort_key)
+        return labels, sorted(boxes, key=box_order)
 
 
 def _completed_box(
@@ -351,19 +349,15 @@ def _completed_box(
         bounds.append((full_lo, full_hi))
     (a0, a1), (b0, b1) = bounds
     along, across = (a0 + a1) / 2, (b0 + b1) / 2
-    length, width = max(a1 - a0, _MIN_EXTENT), max(b1 - b0, _MIN_EXTENT)
+    length, width = max(a1 - a0, MIN_EXTENT), max(b1 - b0, MIN_EXTENT)
     x, y = axes.T @ np.array([along, across])
     if width > length:
         length, width, yaw = width, length, yaw + math.pi / 2
     return Box(
         center=(float(x), float(y), (bottom + top) / 2.0),
-        size=(length, width, max(top - bottom, _MIN_EXTENT)),
+        size=(length, width, max(top - bottom, MIN_EXTENT)),
         yaw=math.remainder(yaw, math.pi),
         label=label,
         score=score,
         points=points,
     )
-
-
-def _sort_key(box: Box) -> tuple[float, ...]:
-    return (*box.center, *box.size, box.yaw)
