@@ -56,7 +56,7 @@ from pathlib import Path
 import pytest_metamorphic
 from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.lidar.campaign import mr1_campaign
-from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
+from pytest_metamorphic.lidar.systems.perception.pipeline import ReferencePerception
 
 # Timing another copy of the package would measure the wrong code.
 assert Path(pytest_metamorphic.__file__).resolve().is_relative_to({root!r}), (

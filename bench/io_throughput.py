@@ -42,7 +42,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pytest_metamorphic.lidar.cloud import PointCloud  # noqa: E402
 from pytest_metamorphic.lidar.io import (  # noqa: E402
     index_bag,
     iter_bag,
@@ -52,6 +51,7 @@ from pytest_metamorphic.lidar.io import (  # noqa: E402
     write_pcd,
 )
 from pytest_metamorphic.lidar.io.rosbag import POINTCLOUD2, pointcloud2_to_cloud  # noqa: E402
+from pytest_metamorphic.lidar.model.cloud import PointCloud  # noqa: E402
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
 

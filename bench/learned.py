@@ -1,6 +1,6 @@
 """The learned detector under test: its quality, the paper's MR1 table on it, batch speed.
 
-The system is :class:`~pytest_metamorphic.lidar.perception.cnnseg.CNNSegmentation`, the
+The system is :class:`~pytest_metamorphic.lidar.systems.perception.cnnseg.CNNSegmentation`, the
 project's Apollo-style CNN segmentation (trained here on rendered scenes, run with
 onnxruntime on the CPU). Three parts, each printed as a table:
 
@@ -14,7 +14,8 @@ onnxruntime on the CPU). Three parts, each printed as a table:
    ``full_cloud=True`` (Apollo's ``use_full_cloud``) and ``False``, beside the paper's
    2.7 / 12.1 / 33.5 %. Default ROI scope (obstacles wholly inside the ROI are judged);
    strict MR1 with the learned tolerance (a judged obstacle is lost when no follow-up
-   obstacle of its class has its centre within 0.5 m; :mod:`pytest_metamorphic.lidar.tolerance`).
+   obstacle of its class has its centre within 0.5 m;
+   :mod:`pytest_metamorphic.lidar.judging.tolerance`).
    Run in ``--workers`` processes (shards merge to the one-process result).
 3. **Batches**: the same MR1 campaign shape over ``--batch-sources`` pre-rendered scenes
    (rendering excluded), through the engine (``run_campaign``) with the detector taking
@@ -55,12 +56,12 @@ from pytest_metamorphic.core.campaign import (  # noqa: E402
 from pytest_metamorphic.core.intervals import wilson  # noqa: E402
 from pytest_metamorphic.lidar.campaign import mr1_campaign  # noqa: E402
 from pytest_metamorphic.lidar.campaign.sources import synthetic_frames  # noqa: E402
-from pytest_metamorphic.lidar.evaluation import Evaluation, kitti_label_region  # noqa: E402
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402
-from pytest_metamorphic.lidar.perception.cnnseg import CNNSegmentation  # noqa: E402
-from pytest_metamorphic.lidar.perception.cnnseg.data import held_out_frame  # noqa: E402
-from pytest_metamorphic.lidar.perception.cnnseg.quality import detection_quality  # noqa: E402
-from pytest_metamorphic.lidar.tolerance import LEARNED  # noqa: E402
+from pytest_metamorphic.lidar.judging.evaluation import Evaluation, kitti_label_region  # noqa: E402
+from pytest_metamorphic.lidar.judging.tolerance import LEARNED  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg.data import held_out_frame  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg.quality import detection_quality  # noqa: E402
 from pytest_metamorphic.reports.campaign import format_table  # noqa: E402
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))

@@ -2,7 +2,7 @@
 
 Needs PyTorch (and a CUDA device for the numbers that matter; without one it measures
 PyTorch on the CPU and says so). The network is the shipped architecture
-(:func:`~pytest_metamorphic.lidar.perception.cnnseg.train.build_network`, 160 x 160 x 6
+(:func:`~pytest_metamorphic.lidar.systems.perception.cnnseg.train.build_network`, 160 x 160 x 6
 inputs) with freshly initialised weights: its cost does not depend on their values. Each
 batch size runs ``--repeat`` timed forward passes after 20 warm-ups, synchronised, in
 float32 and, on a GPU, in bfloat16 autocast; frames per second = batch x passes / time.
@@ -26,8 +26,8 @@ sys.path.insert(0, str(ROOT))
 
 import torch  # noqa: E402
 
-from pytest_metamorphic.lidar.perception.cnnseg.features import CHANNELS, GridSpec  # noqa: E402
-from pytest_metamorphic.lidar.perception.cnnseg.train import Exported, build_network  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg.features import CHANNELS, GridSpec  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg.train import Exported, build_network  # noqa: E402
 
 
 def frames_per_second(network: torch.nn.Module, batch: int, repeat: int, device: str,

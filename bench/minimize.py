@@ -59,11 +59,11 @@ from pytest_metamorphic.core.minimize import ddmin  # noqa: E402
 from pytest_metamorphic.core.perturbation import as_reducible  # noqa: E402
 from pytest_metamorphic.core.reduction import _orders, reduce_followup  # noqa: E402
 from pytest_metamorphic.core.relations import CheckContext  # noqa: E402
-from pytest_metamorphic.lidar.evaluation import kitti_label_region  # noqa: E402
-from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
+from pytest_metamorphic.lidar.followups.perturb import SEED_BITS, NoiseOutsideROI  # noqa: E402
 from pytest_metamorphic.lidar.io import read_bin  # noqa: E402
-from pytest_metamorphic.lidar.perception.mutants import mutant  # noqa: E402
-from pytest_metamorphic.lidar.perturb import SEED_BITS, NoiseOutsideROI  # noqa: E402
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region  # noqa: E402
+from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant  # noqa: E402
 from pytest_metamorphic.relations.lidar import mr1_subset  # noqa: E402
 from pytest_metamorphic.strategies import noise_outside_roi  # noqa: E402
 

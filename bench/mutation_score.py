@@ -2,7 +2,7 @@
 
 Every relation of :func:`pytest_metamorphic.relations.lidar.lidar_relations` (plus
 rotation by any angle) runs as an ``@metamorphic`` Hypothesis test against the reference
-pipeline and against each mutant of :mod:`pytest_metamorphic.lidar.perception.mutants`,
+pipeline and against each mutant of :mod:`pytest_metamorphic.lidar.systems.perception.mutants`,
 at the default budgets: Hypothesis' default ``max_examples`` (100), the engine's default
 2 follow-ups per source, the relations' default noise sizes; derandomized, so the run is
 reproducible. A mutant is *killed* by a relation when the test fails with a
@@ -17,13 +17,13 @@ sweeps (see ``rotation_equivariance``). A relation that the reference pipeline v
 would be unsound; its kills would not count (none does).
 
 Relations run with their default scope: obstacles wholly inside the ROI are judged
-(:mod:`pytest_metamorphic.lidar.scope`). The whole-scene variant
-(:class:`~pytest_metamorphic.lidar.perception.whole_scene.WholeScenePerception`, the
+(:mod:`pytest_metamorphic.lidar.judging.scope`). The whole-scene variant
+(:class:`~pytest_metamorphic.lidar.systems.perception.whole_scene.WholeScenePerception`, the
 reference without its ROI filter) is a second correct system: every relation it
 violates is a *false alarm* (target 0). It runs every relation but rotation by any
 angle, which it is not expected to satisfy (see ``rotation_equivariance``). The learned
 detector with features from the ROI only
-(:class:`~pytest_metamorphic.lidar.perception.cnnseg.CNNSegmentation`, ``full_cloud=False``)
+(:class:`~pytest_metamorphic.lidar.systems.perception.cnnseg.CNNSegmentation`, ``full_cloud=False``)
 is a third, on the relations its design and training make hold (:data:`LEARNED_HOLDS`)
 and on the scenes it was trained for (the rendered streets; on the KITTI sweeps it calls
 walls and bushes "car", and those hallucinations come and go with any change); the other
@@ -52,19 +52,19 @@ sys.path.insert(0, str(ROOT))
 
 from pytest_metamorphic import MetamorphicViolation, metamorphic  # noqa: E402
 from pytest_metamorphic.core.engine import MetamorphicRelation  # noqa: E402
-from pytest_metamorphic.lidar.evaluation import kitti_label_region  # noqa: E402
-from pytest_metamorphic.lidar.frame import Frame  # noqa: E402
-from pytest_metamorphic.lidar.obstacles import Box  # noqa: E402
-from pytest_metamorphic.lidar.perception import ReferencePerception  # noqa: E402
-from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant  # noqa: E402
-from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception  # noqa: E402
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region  # noqa: E402
+from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
+from pytest_metamorphic.lidar.model.obstacles import Box  # noqa: E402
 from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
-from pytest_metamorphic.lidar.scene import (  # noqa: E402
+from pytest_metamorphic.lidar.synthetic import (  # noqa: E402
     BackgroundObject,
     Obstacle,
     Scene,
     render,
 )
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.mutants import MUTANTS, mutant  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.whole_scene import WholeScenePerception  # noqa: E402
 from pytest_metamorphic.relations.lidar import (  # noqa: E402
     lidar_relations,
     rotation_equivariance,
@@ -221,7 +221,7 @@ def main() -> None:
         "whole_scene": WholeScenePerception(),
     }
     try:
-        from pytest_metamorphic.lidar.perception.cnnseg import CNNSegmentation
+        from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation
 
         correct["cnnseg_roi"] = CNNSegmentation(full_cloud=False)
     except Exception as error:  # onnxruntime missing: say so, run the rest

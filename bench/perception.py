@@ -42,18 +42,18 @@ from scipy.spatial import cKDTree  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pytest_metamorphic.lidar.evaluation import (  # noqa: E402
+from pytest_metamorphic.lidar.io import read_bin, read_kitti_labels  # noqa: E402
+from pytest_metamorphic.lidar.judging.evaluation import (  # noqa: E402
     Evaluation,
     evaluate,
     kitti_label_region,
     visible_truth,
 )
-from pytest_metamorphic.lidar.io import read_bin, read_kitti_labels  # noqa: E402
-from pytest_metamorphic.lidar.obstacles import Box  # noqa: E402
-from pytest_metamorphic.lidar.perception import ReferencePerception  # noqa: E402
-from pytest_metamorphic.lidar.perception.classify import ObjectShape, classify  # noqa: E402
-from pytest_metamorphic.lidar.perception.minbox import min_boxes  # noqa: E402
+from pytest_metamorphic.lidar.model.obstacles import Box  # noqa: E402
 from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.classify import ObjectShape, classify  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.minbox import min_boxes  # noqa: E402
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
 KITTI = DATA / "kitti_openpcdet" / "training"

@@ -30,10 +30,10 @@ from matplotlib.path import Path as MplPath
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS, Box  # noqa: E402
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI  # noqa: E402
+from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI  # noqa: E402
+from pytest_metamorphic.lidar.model.obstacles import SIZE_PRIORS, Box  # noqa: E402
 from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
-from pytest_metamorphic.lidar.scene import (  # noqa: E402
+from pytest_metamorphic.lidar.synthetic import (  # noqa: E402
     BackgroundObject,
     Obstacle,
     Scene,

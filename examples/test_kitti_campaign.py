@@ -3,7 +3,7 @@
 Every full, labelled KITTI frame in ``../shared/data/kitti_openpcdet`` is a source; each
 gets 50 independent follow-ups per noise size (10, 100 and 1000 points outside the ROI).
 KITTI has no HD map, so the ROI is the camera wedge its labels cover
-(:func:`~pytest_metamorphic.lidar.evaluation.kitti_label_region`). Skipped where the data
+(:func:`~pytest_metamorphic.lidar.judging.evaluation.kitti_label_region`). Skipped where the data
 is absent; set ``PYTEST_METAMORPHIC_DATA`` to point elsewhere::
 
     pytest examples/test_kitti_campaign.py --mt-campaign
@@ -23,12 +23,12 @@ from pytest_metamorphic.lidar.campaign import (
     mr1_campaign,
     symmetry_campaign,
 )
-from pytest_metamorphic.lidar.evaluation import kitti_label_region
-from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception.mutants import mutant
-from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
+from pytest_metamorphic.lidar.systems.perception.pipeline import ReferencePerception
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", Path(__file__).parents[2] / "shared/data"))
 KITTI = DATA / "kitti_openpcdet" / "training"

@@ -1,7 +1,7 @@
 """Testing a learned detector: Apollo-style CNN segmentation, trained here, run with ONNX.
 
 The system under test is the project's own learned model
-(:class:`~pytest_metamorphic.lidar.perception.cnnseg.CNNSegmentation`): a small U-Net on
+(:class:`~pytest_metamorphic.lidar.systems.perception.cnnseg.CNNSegmentation`): a small U-Net on
 Apollo's bird's-eye feature grid, trained on rendered HDL-64E streets and shipped as an
 ONNX file that onnxruntime runs on the CPU (no PyTorch needed). It comes in Apollo's two
 configurations:
@@ -15,7 +15,7 @@ configurations:
 A network is never exactly equivariant: turning or mirroring the sweep, repeating points,
 changes its maps a little; boxes move by centimetres, a border cell flips, a pedestrian
 comes out in two pieces. The relations therefore run with the *learned* tolerance
-(``lidar_relations(tolerance="learned")``, :mod:`pytest_metamorphic.lidar.tolerance`): a
+(``lidar_relations(tolerance="learned")``, :mod:`pytest_metamorphic.lidar.judging.tolerance`): a
 violation is an obstacle gone or displaced by more than 0.5 m, never jitter. With it the
 ROI-feature model satisfies the library but for what it does not claim: quarter turns
 and the mirror (a network is not equivariant by construction: rare real inconsistencies
@@ -41,15 +41,15 @@ from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.lidar.campaign import mr1_campaign
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.tolerance import LEARNED
+from pytest_metamorphic.lidar.judging.tolerance import LEARNED
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.relations.lidar import adverse_weather, lidar_relations, mr1_subset
 
 pytest.importorskip("onnxruntime", reason="onnxruntime is not installed: pip install '.[learned]'")
 
-from pytest_metamorphic.lidar.perception.cnnseg import CNNSegmentation
-from pytest_metamorphic.lidar.perception.cnnseg.data import held_out_frame
+from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation
+from pytest_metamorphic.lidar.systems.perception.cnnseg.data import held_out_frame
 
 LIDAR = [HealthCheck.too_slow, HealthCheck.large_base_example, HealthCheck.data_too_large]
 full_cloud = CNNSegmentation(full_cloud=True)

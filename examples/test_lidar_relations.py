@@ -18,10 +18,10 @@ from hypothesis import HealthCheck, Phase, settings
 
 from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic import strategies as mst
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception.mutants import mutant
-from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
+from pytest_metamorphic.lidar.systems.perception.pipeline import ReferencePerception
 from pytest_metamorphic.relations.lidar import lidar_relations, mr1_subset
 
 reference = ReferencePerception()

@@ -24,10 +24,10 @@ from __future__ import annotations
 
 from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.lidar.campaign import mr1_campaign
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception.mutants import mutant
-from pytest_metamorphic.lidar.perception.pipeline import ReferencePerception
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
+from pytest_metamorphic.lidar.systems.perception.pipeline import ReferencePerception
 
 SOURCES = 200  # the paper used 1000 frames; bench/campaign.py runs the full protocol
 # Apollo and the reference pipeline filter by ROI first: everything they report is on the

@@ -35,12 +35,16 @@ from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.lidar.campaign import fault_campaign, mr1_campaign, symmetry_campaign
-from pytest_metamorphic.lidar.evaluation import kitti_label_region
-from pytest_metamorphic.lidar.faults import DropRings
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.insert import InsertObject, free_placements, object_templates
+from pytest_metamorphic.lidar.followups.faults import DropRings
+from pytest_metamorphic.lidar.followups.insert import (
+    InsertObject,
+    free_placements,
+    object_templates,
+)
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.relations.lidar import (
     beam_loss,
     lidar_relations,

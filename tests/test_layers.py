@@ -71,3 +71,141 @@ def test_imports_point_down_the_layers(path: Path) -> None:
 def test_the_check_sees_every_part() -> None:
     parts = {path.relative_to(PACKAGE).parts[0].removesuffix(".py") for path in MODULES}
     assert parts == set(LAYERS)
+
+
+# Inside ``lidar``: each concept group imports only from the groups before it (the order a
+# metamorphic test runs through them); ``_moved`` (old import paths) is outside the order.
+LIDAR_GROUPS = (
+    "model",
+    "io",
+    "roi",
+    "synthetic",
+    "judging",
+    "systems",
+    "followups",
+    "campaign",
+)
+LIDAR = PACKAGE / "lidar"
+# A module past this many lines holds several concepts (the project's rule).
+MAX_LINES = 600
+
+
+def _lidar_group(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[:2] != ["pytest_metamorphic", "lidar"] or len(parts) < 3:
+        return None
+    return parts[2]
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted(LIDAR.rglob("*.py")),
+    ids=lambda p: str(p.relative_to(LIDAR)),
+)
+def test_lidar_groups_import_only_earlier_groups(path: Path) -> None:
+    relative = path.relative_to(LIDAR)
+    group = relative.parts[0].removesuffix(".py")
+    if group in ("__init__", "_moved"):
+        return
+    assert group in LIDAR_GROUPS, f"lidar/{group} is not in LIDAR_GROUPS: place it in the order"
+    for line, module in _imports(path):
+        target = _lidar_group(module)
+        if target is None or target == group:
+            continue
+        assert target in LIDAR_GROUPS, f"lidar/{relative}:{line} imports {module}"
+        assert LIDAR_GROUPS.index(target) < LIDAR_GROUPS.index(group), (
+            f"lidar/{relative}:{line} imports {module}: {target} comes after {group}"
+        )
+
+
+def test_lidar_is_concept_groups_with_few_loose_modules() -> None:
+    loose = sorted(p.name for p in LIDAR.glob("*.py"))
+    assert loose == ["__init__.py", "_moved.py"]
+    groups = sorted(p.name for p in LIDAR.iterdir() if (p / "__init__.py").exists())
+    assert groups == sorted(LIDAR_GROUPS)
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _runtime_imports(path: Path, modules: set[str]) -> set[str]:
+    """Package modules ``path`` imports when it runs (``TYPE_CHECKING`` blocks excluded);
+    ``from package import name`` counts as importing the submodule when ``name`` is one."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    type_only = {
+        id(child)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+        for child in ast.walk(node)
+    }
+    found = set()
+    for node in ast.walk(tree):
+        if id(node) in type_only:
+            continue
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names if alias.name in modules}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            for alias in node.names:
+                name = f"{node.module}.{alias.name}"
+                if name in modules:
+                    found.add(name)
+                elif node.module in modules:
+                    found.add(node.module)
+    return found
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan), or a module that
+    imports itself."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for successor in sorted(graph.get(node, ())):
+            if successor not in index:
+                visit(successor)
+                low[node] = min(low[node], low[successor])
+            elif successor in on_stack:
+                low[node] = min(low[node], index[successor])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1 or node in graph.get(node, ()):
+                circles.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return circles
+
+
+def test_no_import_circle_anywhere_in_the_package() -> None:
+    paths = {_module_name(path): path for path in PACKAGE.rglob("*.py")}
+    graph = {name: _runtime_imports(path, set(paths)) for name, path in paths.items()}
+    assert _circles(graph) == []
+
+
+def test_the_circle_check_finds_a_circle() -> None:
+    assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _circles({"a": {"b"}, "b": set()}) == []
+
+
+@pytest.mark.parametrize(
+    "path", sorted(PACKAGE.rglob("*.py")), ids=lambda p: str(p.relative_to(PACKAGE))
+)
+def test_modules_hold_one_concept(path: Path) -> None:
+    lines = len(path.read_text(encoding="utf-8").splitlines())
+    assert lines <= MAX_LINES, f"{path.relative_to(PACKAGE)}: {lines} lines; split it"

@@ -377,6 +377,8 @@ def metamorphic(
         run again one input at a time, so a crash names its input. ``timeout`` stays per
         input (a batch of k inputs may take k times as long).
 
+    Notes
+    -----
     The decorated function takes the input as its first parameter (more parameters are
     pytest fixtures) and returns the system's output. Stack ``@settings(...)`` on top as
     with ``@given``.
@@ -412,11 +414,12 @@ def metamorphic(
             runner(case, kwargs)
 
         del test.__wrapped__  # pytest and Hypothesis must see our signature, not fn's
-        test.__signature__ = inspect.Signature(
+        signed: Any = test  # function attributes are not in its static type
+        signed.__signature__ = inspect.Signature(
             [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) for p in fixtures]
             + [inspect.Parameter(CASE_ARGUMENT, inspect.Parameter.KEYWORD_ONLY)]
         )
-        wrapped = given(**{CASE_ARGUMENT: _cases(source, mrs, count)})(test)
+        wrapped: Any = given(**{CASE_ARGUMENT: _cases(source, mrs, count)})(test)
         # One example runs the system 1 + followups x relations times, so Hypothesis's
         # per-example deadline would misfire on any real system. A user's @settings on top
         # replaces this default entirely, as it does for @given.

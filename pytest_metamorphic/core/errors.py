@@ -6,6 +6,8 @@ an error in the system under test, bad input is the caller's fault).
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = [
     "DataError",
     "ExternalSystemError",
@@ -47,11 +49,19 @@ class MetamorphicViolation(AssertionError):
     """A metamorphic relation does not hold between a source and a follow-up output.
 
     An ``AssertionError`` so that pytest and Hypothesis treat it as a test failure.
+    The engine fills in what it knows about the violating pair: the (minimal) follow-up,
+    both outputs and its full record (``None`` when the error was raised elsewhere).
     """
+
+    followup: Any
+    source_output: Any
+    followup_output: Any
+    record: Any
 
     def __init__(self, message: str, *, relation: str = "", verdict: object = None) -> None:
         self.relation = relation
         self.verdict = verdict
+        self.followup = self.source_output = self.followup_output = self.record = None
         super().__init__(message)
 
 

@@ -9,7 +9,8 @@ its elements and applied to the source input again.
 Classes that cannot implement the protocol themselves (they live in another package, or
 predate it) get an adapter through :func:`register_reducible`. Adapters for the LiDAR
 perturbations are registered lazily: the first time a value from
-``pytest_metamorphic.lidar.perturb`` is seen, ``pytest_metamorphic.lidar.minimize`` is
+``pytest_metamorphic.lidar.followups.perturb`` is seen,
+``pytest_metamorphic.lidar.followups.minimize`` is
 imported, so the core never imports the LiDAR code itself.
 """
 
@@ -62,7 +63,9 @@ class Reducible(Protocol):
 
 _ADAPTERS: dict[type, Callable[[Any], Reducible]] = {}
 # module of a perturbation -> module whose import registers adapters for it
-_LAZY_ADAPTERS = {"pytest_metamorphic.lidar.perturb": "pytest_metamorphic.lidar.minimize"}
+_LAZY_ADAPTERS = {
+    "pytest_metamorphic.lidar.followups.perturb": "pytest_metamorphic.lidar.followups.minimize"
+}
 
 
 def register_reducible(cls: type, adapter: Callable[[Any], Reducible]) -> None:

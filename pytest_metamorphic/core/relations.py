@@ -238,7 +238,7 @@ def subset(*, matcher: Matcher | Callable[[Any, Any], bool] | None = None) -> Re
     ----------
     matcher : Matcher or callable(a, b) -> bool, optional
         Which elements may match; exact equality by default. For obstacles use
-        ``pytest_metamorphic.lidar.obstacles.IoUMatcher`` or a centre-distance matcher.
+        ``pytest_metamorphic.lidar.model.obstacles.IoUMatcher`` or a centre-distance matcher.
     """
     return _Contained(_as_matcher(matcher, "matcher"), source_inside=True)
 
@@ -364,4 +364,4 @@ def predicate(fn: Callable[[Any, Any, CheckContext], Any], *, name: str | None =
         raise InvalidArgument(
             f"fn={fn!r} must be callable(source_output, followup_output, context)"
         )
-    return _Predicate(fn, name or getattr(fn, "__name__", "predicate"))
+    return _Predicate(fn, name or str(getattr(fn, "__name__", "predicate")))

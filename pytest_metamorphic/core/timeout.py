@@ -5,7 +5,7 @@ A detector stuck on a GPU or a deadlocked library must not hang the whole test r
 after ``seconds``, raising :class:`~pytest_metamorphic.core.errors.SystemTimeout`.
 Python cannot stop a thread, so a call that never returns keeps running in the
 background (it cannot block the interpreter's exit); systems in another process
-(:class:`~pytest_metamorphic.lidar.process.ProcessDetector`) are killed instead.
+(:class:`~pytest_metamorphic.lidar.systems.process.ProcessDetector`) are killed instead.
 """
 
 from __future__ import annotations

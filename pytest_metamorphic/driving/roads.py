@@ -17,7 +17,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -88,6 +88,16 @@ class RoadGeometry:
     lanes: int = 1
     name: str = ""
     margins: tuple[float, float] = (0.0, 0.0)
+    # Derived in __post_init__: segments as arrays (vectorised queries) and as lists (the
+    # scalar fast path of point_at).
+    _seg_start: NDArray[np.float64] = field(init=False, repr=False)
+    _seg_dir: NDArray[np.float64] = field(init=False, repr=False)
+    _seg_len: NDArray[np.float64] = field(init=False, repr=False)
+    _cum: NDArray[np.float64] = field(init=False, repr=False)
+    _cum_list: list[float] = field(init=False, repr=False)
+    _start_list: list[tuple[float, float]] = field(init=False, repr=False)
+    _dir_list: list[tuple[float, float]] = field(init=False, repr=False)
+    _cum_start: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         points = np.array(self.centerline, dtype=np.float64, copy=True)

@@ -175,6 +175,7 @@ PROTOCOLS: Mapping[str, Protocol] = MappingProxyType(
     }
 )  # fmt: skip
 KINDS: tuple[str, ...] = tuple(PROTOCOLS)
+"""The Euro NCAP scenario kinds, in protocol order."""
 
 #: The protocol's initial time to collision: the car starts this far (in time) away.
 INITIAL_TTC = 6.0

@@ -228,12 +228,12 @@ class _SessionReporter:
             if key == ARTIFACT_PROPERTY:
                 self.config.stash[_ARTIFACT_LIST].append((report.nodeid, value))
             elif key == REPLAY_PROPERTY:
-                self.config.stash[_REPLAY_RESULTS].append(json.loads(value))
+                self.config.stash[_REPLAY_RESULTS].append(json.loads(str(value)))
         blob = next((v for k, v in report.user_properties if k == CAMPAIGN_PROPERTY), None)
         if blob is not None:
             from pytest_metamorphic.core.campaign import result_from_json
 
-            merge_campaign(self.config, result_from_json(json.loads(blob)))
+            merge_campaign(self.config, result_from_json(json.loads(str(blob))))
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if hasattr(self.config, "workerinput"):

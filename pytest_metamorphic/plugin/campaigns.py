@@ -40,11 +40,7 @@ def campaign_of(item: pytest.Item) -> Any:
 def one_item_per_campaign(config: pytest.Config, items: list[pytest.Item]) -> None:
     """On a Dask cluster, shard 0's test runs the whole campaign: the cluster spreads the
     sources, and the other shards' tests would have nothing left to do."""
-    dropped = [
-        item
-        for item in items
-        if campaign_of(item) is not None and item.callspec.params.get("mt_shard", 0) != 0
-    ]
+    dropped = [item for item in items if campaign_of(item) is not None and _shard(item) != 0]
     if dropped:
         config.hook.pytest_deselected(items=dropped)
         gone = set(dropped)
@@ -63,11 +59,17 @@ def claim_campaign_name(owners: dict[str, str], item: pytest.Item) -> None:
         )
 
 
+def _shard(item: pytest.Item) -> int:
+    """The shard a campaign test's item runs (its ``mt_shard`` parameter)."""
+    callspec = getattr(item, "callspec", None)  # parametrized items (pytest.Function) only
+    return int(callspec.params.get("mt_shard", 0)) if callspec is not None else 0
+
+
 def run_campaign_shard(item: pytest.Item) -> None:
     from pytest_metamorphic.core.campaign import ShardLogs, run_campaign
 
     campaign, shards = campaign_of(item)
-    shard = item.callspec.params["mt_shard"]
+    shard = _shard(item)
     options = item.config.stash[OPTIONS]
     logs = ShardLogs(options.campaign_dir / slug(campaign.name), shards)
     # On a cluster this test runs every source, each logged in its own shard's file:

@@ -210,7 +210,7 @@ def speed_relation(
     from pytest_metamorphic.core.engine import MetamorphicRelation
     from pytest_metamorphic.strategies import ego_speed_changes
 
-    options = {
+    options: dict[str, Any] = {
         "min_speed_kmh": min_speed_kmh,
         "max_speed_kmh": max_speed_kmh,
         "step_kmh": step_kmh,
@@ -225,7 +225,9 @@ def speed_relation(
         return ego_speed_changes(source, **options)
 
     followup.__name__ = "ego_speed_changes"
-    check = avoided_stays_avoided(excuse_unavoidable=excuse_unavoidable, slack=slack, sensor=sensor)
+    check: Relation = avoided_stays_avoided(
+        excuse_unavoidable=excuse_unavoidable, slack=slack, sensor=sensor
+    )
     if keep != "pedestrian":
         check = check & impact_speed_monotone(tolerance_kmh=tolerance_kmh)
     return MetamorphicRelation("ego speed change", followup, check)

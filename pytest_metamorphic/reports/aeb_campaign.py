@@ -284,7 +284,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             sources,
             CONTROLLERS,
             speeds_kmh=speeds,
-            keep=keep,  # type: ignore[arg-type]
+            keep=keep,
             relevance=args.relevance,
             simulator=simulator,
             on_violation=on_violation,

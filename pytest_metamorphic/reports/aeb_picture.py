@@ -95,7 +95,7 @@ def _draw(ax: Any, run: Run) -> None:
         cs, cd = motion.road_position(result.collision.time)
         x, y, _ = road.point(float(cs), float(cd))
         ax.plot(x, y, "X", color="red", ms=12)
-        where = result.collision.location
+        where: str = result.collision.location
         if result.collision.side:
             where = f"{result.collision.side} {where}"
         ax.annotate(f"{where} impact {result.collision.impact_speed_kmh:.0f} km/h", (x, y),

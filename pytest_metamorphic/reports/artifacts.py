@@ -62,15 +62,15 @@ VERSION = 1
 _MAX_ARRAY = 100_000
 # Perturbations that can be rebuilt from their JSON (type name -> module, class, field).
 _PERTURBATIONS = {
-    "NoiseOutsideROI": ("pytest_metamorphic.lidar.perturb", "points"),
-    "NoiseInsideROI": ("pytest_metamorphic.lidar.perturb", "points"),
-    "DropPoints": ("pytest_metamorphic.lidar.perturb", "indices"),
-    "DuplicatePoints": ("pytest_metamorphic.lidar.perturb", "indices"),
+    "NoiseOutsideROI": ("pytest_metamorphic.lidar.followups.perturb", "points"),
+    "NoiseInsideROI": ("pytest_metamorphic.lidar.followups.perturb", "points"),
+    "DropPoints": ("pytest_metamorphic.lidar.followups.perturb", "indices"),
+    "DuplicatePoints": ("pytest_metamorphic.lidar.followups.perturb", "indices"),
 }
 # Object edits that rebuild themselves from their own JSON (``cls.from_json``).
 _EDITS = {
-    "RemoveObject": "pytest_metamorphic.lidar.edit",
-    "InsertObject": "pytest_metamorphic.lidar.insert",
+    "RemoveObject": "pytest_metamorphic.lidar.followups.edit",
+    "InsertObject": "pytest_metamorphic.lidar.followups.insert",
 }
 
 
@@ -163,7 +163,7 @@ def _hidden(record: Any) -> list[Any]:
     source_boxes = _boxes_or_none(record.source_output)
     followup_boxes = _boxes_or_none(record.minimal_output)
     if source_boxes is not None and followup_boxes is not None:
-        from pytest_metamorphic.lidar.minimize import lost_obstacles
+        from pytest_metamorphic.lidar.followups.minimize import lost_obstacles
 
         return [source_boxes[i] for i in lost_obstacles(source_boxes, followup_boxes)]
     return []
@@ -272,8 +272,8 @@ def _fill(
     followup_spec = encode_input(followup.input, folder, "followup")
     minimal_points = _injected_points(followup.params)
     if minimal_points is not None and source_spec["kind"] == "frame":
-        from pytest_metamorphic.lidar.cloud import PointCloud
         from pytest_metamorphic.lidar.io import write_pcd
+        from pytest_metamorphic.lidar.model.cloud import PointCloud
 
         minimal_cloud = PointCloud(minimal_points, name="minimal perturbation")
         write_pcd(minimal_cloud, folder / "perturbation.pcd")

@@ -277,7 +277,7 @@ def draw_birdseye(
     figure = Figure(figsize=_SIZE, dpi=_DPI)
     FigureCanvasAgg(figure)
     overview, zoom = figure.subplots(1, 2)
-    layers = {
+    layers: dict[str, Any] = {
         "roi": getattr(source, "roi", None),
         "cloud": cloud,
         "injected": injected_xy,
@@ -368,7 +368,7 @@ def _annotate(ax: Any, hidden: Sequence[Any], minimal: NDArray[np.float64]) -> N
     """List the hidden obstacles and the minimal points in a corner of the close-up."""
     lines = [f"hidden: {box.describe()}" for box in hidden[:4]]
     if len(minimal):
-        from pytest_metamorphic.lidar.minimize import footprint_distances
+        from pytest_metamorphic.lidar.model.obstacles import footprint_distances
 
         # Distance to the nearest hidden footprint, as in the violation message.
         distances = footprint_distances(minimal, hidden)

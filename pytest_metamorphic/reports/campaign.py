@@ -104,8 +104,11 @@ def _status(result: CampaignResult) -> str:
 
 
 def describe_execution(entries: list[dict[str, Any]]) -> str:
-    """How the sources ran: ``ran on a Dask cluster tcp://... (2 workers, 63 tasks, ...)``,
-    ``ran in 8 shards on pytest-xdist workers gw0, gw1``, ``ran in one process``."""
+    """How the sources ran, in words: on a Dask cluster, in pytest-xdist shards, in one process.
+
+    For example ``ran on a Dask cluster tcp://... (2 workers, 63 tasks, ...)``,
+    ``ran in 8 shards on pytest-xdist workers gw0, gw1`` or ``ran in one process``.
+    """
     if not entries:
         return "ran: nothing this session (every source read back from the logs)"
     parts = []
@@ -200,7 +203,7 @@ def to_markdown(result: CampaignResult) -> str:
     return "\n".join(parts) + "\n"
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+def _atomic_write(path: Path, write: Callable[[Path], object]) -> None:
     """Write to a temporary file and rename: an interruption never leaves half a report."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -235,7 +238,7 @@ class ChartColumn:
 def chart_columns(result: CampaignResult) -> list[ChartColumn]:
     """The chart's columns: one group per category (sizes side by side), a gap between.
 
-    Without categories there is one group, "all", of the overall |O| vs |O'| counts.
+    Without categories there is one group, "all", of the overall ``|O|`` vs ``|O'|`` counts.
     """
     sizes = sorted(result.sizes)
     categories = sorted({c for counts in result.sizes.values() for c in counts.categories})

@@ -29,7 +29,8 @@ _BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 
 
 def is_box(value: Any) -> bool:
-    return type(value).__name__ == "Box" and type(value).__module__.endswith("lidar.obstacles")
+    cls = type(value)
+    return cls.__name__ == "Box" and cls.__module__.endswith("lidar.model.obstacles")
 
 
 def box_json(box: Any) -> dict[str, Any]:
@@ -64,7 +65,7 @@ def _bag_origin(origin: str) -> tuple[str, str] | None:
 
 def encode_input(value: Any, folder: Path, name: str) -> dict[str, Any]:
     """Write ``value`` under ``folder`` (or inline) and describe how to read it back."""
-    from pytest_metamorphic.lidar.frame import Frame
+    from pytest_metamorphic.lidar.model.frame import Frame
 
     if isinstance(value, Frame):
         from pytest_metamorphic.lidar.io import write_bag, write_pcd
@@ -111,9 +112,9 @@ def decode_input(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
         except DataError as error:
             raise DataError(f"{name}: {error}", path=folder / RECORD) from None
     if kind == "frame":
-        from pytest_metamorphic.lidar.frame import Frame
         from pytest_metamorphic.lidar.io import read_pcd
-        from pytest_metamorphic.lidar.obstacles import Box
+        from pytest_metamorphic.lidar.model.frame import Frame
+        from pytest_metamorphic.lidar.model.obstacles import Box
         from pytest_metamorphic.lidar.roi import ROI
 
         cloud = read_pcd(folder / spec["cloud"], zeros="keep")

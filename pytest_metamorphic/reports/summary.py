@@ -80,7 +80,15 @@ class SessionSummary:
         rows = self.rows()
         scoped = any(row[SCOPE_COLUMN] for row in rows)
         columns = (*COLUMNS, SCOPE_COLUMN) if scoped else COLUMNS
-        header = ("test", "relation", "sources", "follow-ups", "SUT calls", "violations", "crashes")
+        header: tuple[str, ...] = (
+            "test",
+            "relation",
+            "sources",
+            "follow-ups",
+            "SUT calls",
+            "violations",
+            "crashes",
+        )
         header += ("out of scope",) if scoped else ()
         body = [(row["test"], row["relation"], *(str(row[c]) for c in columns)) for row in rows]
         for test in self.tests.values():

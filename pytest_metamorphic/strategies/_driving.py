@@ -104,6 +104,8 @@ def aeb_scenarios(
     initial_ttc : float
         The car starts this many seconds before the impact (protocol: 6).
 
+    Notes
+    -----
     The car drives in the centre of a drawn lane; the collision point is placed so that
     the car starts on the road when the road is long enough.
     """

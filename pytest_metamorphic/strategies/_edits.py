@@ -17,18 +17,18 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.edit import RemoveObject, removal_candidates
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.insert import (
+from pytest_metamorphic.lidar.followups.edit import RemoveObject, removal_candidates
+from pytest_metamorphic.lidar.followups.insert import (
     InsertObject,
     ObjectTemplate,
     Placement,
     free_placements,
     object_templates,
 )
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.judging.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.strategies._noise import _check_frame
 
 __all__ = ["inserted_objects", "removed_objects"]
@@ -44,8 +44,8 @@ def removed_objects(
     frame: Any, *, margin: float = 0.15, scope: ScopeLike = "roi"
 ) -> st.SearchStrategy[Followup]:
     """The frame without one of its cars, pedestrians or cyclists
-    (:func:`~pytest_metamorphic.lidar.edit.removal_candidates`, shrinking toward the
-    nearest) removed by :class:`~pytest_metamorphic.lidar.edit.RemoveObject`."""
+    (:func:`~pytest_metamorphic.lidar.followups.edit.removal_candidates`, shrinking toward the
+    nearest) removed by :class:`~pytest_metamorphic.lidar.followups.edit.RemoveObject`."""
     frame = _check_frame(frame)
     RemoveObject(Box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), margin)  # validates margin
     chosen = as_scope(scope)
@@ -74,9 +74,10 @@ def inserted_objects(
     scope: ScopeLike = "roi",
 ) -> st.SearchStrategy[Followup]:
     """The frame with one of ``objects`` (default: its own cars, pedestrians and cyclists
-    of >= ``min_returns`` returns, :func:`~pytest_metamorphic.lidar.insert.object_templates`)
+    of >= ``min_returns`` returns,
+    :func:`~pytest_metamorphic.lidar.followups.insert.object_templates`)
     put on free ground judged by ``scope``, in clear view, re-cast with ``layout``'s beams
-    (:class:`~pytest_metamorphic.lidar.insert.InsertObject`). Shrinks toward the first
+    (:class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`). Shrinks toward the first
     object and the smallest move from where it was seen."""
     frame = _check_frame(frame)
     if not isinstance(layout, BeamLayout):

@@ -15,16 +15,16 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.faults import (
+from pytest_metamorphic.lidar.followups.faults import (
     PACKET_DEGREES,
     DropAzimuthBlock,
     DropRings,
     QuantizeRange,
     derive_rings,
 )
-from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.perturb import SEED_BITS
-from pytest_metamorphic.lidar.weather import WEATHER_KINDS, Weather, WeatherKind
+from pytest_metamorphic.lidar.followups.perturb import SEED_BITS
+from pytest_metamorphic.lidar.followups.weather import WEATHER_KINDS, Weather, WeatherKind
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.strategies._noise import _check_frame
 
 __all__ = ["dead_beams", "lost_packets", "quantized_ranges", "weathered_frames"]
@@ -40,7 +40,8 @@ def dead_beams(
     frame: Any, *, max_rings: int = 4, layout: BeamLayout = HDL64E
 ) -> st.SearchStrategy[Followup]:
     """The frame without every return of 1 to ``max_rings`` lasers
-    (:class:`~pytest_metamorphic.lidar.faults.DropRings`), shrinking toward fewer and lower
+    (:class:`~pytest_metamorphic.lidar.followups.faults.DropRings`), shrinking toward fewer and
+    lower
     rings. Raises at once when the frame's rings cannot be found."""
     frame = _check_frame(frame)
     if not isinstance(layout, BeamLayout):
@@ -58,7 +59,7 @@ def dead_beams(
 
 def lost_packets(frame: Any, *, max_packets: int = 10) -> st.SearchStrategy[Followup]:
     """The frame without 1 to ``max_packets`` consecutive packets (an azimuth block of
-    :data:`~pytest_metamorphic.lidar.faults.PACKET_DEGREES` each), from a start drawn in
+    :data:`~pytest_metamorphic.lidar.followups.faults.PACKET_DEGREES` each), from a start drawn in
     tenths of a degree; shrinking toward one packet straight ahead."""
     frame = _check_frame(frame)
     blocks = st.tuples(st.integers(0, 3599), st.integers(1, _positive(max_packets, "max_packets")))
@@ -75,7 +76,8 @@ def quantized_ranges(
     frame: Any, *, steps: Sequence[float] = (0.05, 0.1, 0.2)
 ) -> st.SearchStrategy[Followup]:
     """The frame with every range rounded to one of ``steps`` metres
-    (:class:`~pytest_metamorphic.lidar.faults.QuantizeRange`), shrinking toward the first."""
+    (:class:`~pytest_metamorphic.lidar.followups.faults.QuantizeRange`), shrinking toward the
+    first."""
     frame = _check_frame(frame)
     levels = tuple(steps)
     if not levels:
@@ -94,7 +96,7 @@ def weathered_frames(
     kinds: Sequence[WeatherKind] = WEATHER_KINDS,
     visibilities: Sequence[float] = (200.0, 100.0, 50.0),
 ) -> st.SearchStrategy[Followup]:
-    """The frame in fog or rain (:class:`~pytest_metamorphic.lidar.weather.Weather`) of
+    """The frame in fog or rain (:class:`~pytest_metamorphic.lidar.followups.weather.Weather`) of
     one of ``kinds`` and ``visibilities`` (metres), with a drawn seed; shrinking toward
     the first kind, the first visibility and seed 0."""
     frame = _check_frame(frame)

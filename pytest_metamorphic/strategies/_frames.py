@@ -14,10 +14,10 @@ from typing import Any, Literal
 
 from hypothesis import strategies as st
 
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy
-from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io._common import ZerosPolicy
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy
+from pytest_metamorphic.lidar.model.frame import Frame
 
 __all__ = ["frames"]
 
@@ -35,7 +35,7 @@ def frames(
     zeros: ZerosPolicy = "auto",
     cache_size: int = 4,
 ) -> st.SearchStrategy[Frame]:
-    """A strategy drawing :class:`~pytest_metamorphic.lidar.frame.Frame` objects from files.
+    """A strategy drawing :class:`~pytest_metamorphic.lidar.model.frame.Frame` objects from files.
 
     Parameters
     ----------

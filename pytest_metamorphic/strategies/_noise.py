@@ -1,9 +1,9 @@
 """Follow-up strategies that perturb a LiDAR frame, for ``@metamorphic(followup=...)``.
 
-Each strategy takes the source :class:`~pytest_metamorphic.lidar.frame.Frame` and draws
+Each strategy takes the source :class:`~pytest_metamorphic.lidar.model.frame.Frame` and draws
 :class:`~pytest_metamorphic.core.engine.Followup` values: the perturbed frame plus the
 perturbation itself in ``params`` (a small value object from
-:mod:`pytest_metamorphic.lidar.perturb` whose ``repr`` shows the injected points), so a
+:mod:`pytest_metamorphic.lidar.followups.perturb` whose ``repr`` shows the injected points), so a
 failure report says exactly what was done.
 
 Noise is drawn as one 32-bit integer per point (``st.lists(st.integers(0, 2**32 - 1))``),
@@ -25,9 +25,7 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perturb import (
+from pytest_metamorphic.lidar.followups.perturb import (
     SEED_BITS,
     DropPoints,
     DuplicatePoints,
@@ -36,6 +34,8 @@ from pytest_metamorphic.lidar.perturb import (
     PermutePoints,
     RotateAboutSensor,
 )
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.roi import ROI
 
 __all__ = [
@@ -165,7 +165,7 @@ def noise_inside_roi(
     """
     frame = _check_frame(frame)
     bounds = _sizes(n, min_size, max_size)
-    options = {
+    options: dict[str, Any] = {
         "roi": roi,
         "obstacles": obstacles,
         "clearance": clearance,

@@ -15,7 +15,8 @@ from typing import Any
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.layout import (
+from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.synthetic.layout import (
     MIN_ROAD_WIDTH,
     ROAD_KINDS,
     WIDTH_STEP,
@@ -25,7 +26,6 @@ from pytest_metamorphic.lidar.layout import (
     junction_roi,
     star_roi,
 )
-from pytest_metamorphic.lidar.roi import ROI
 
 __all__ = ["junctions", "road_corridors", "rois", "simple_polygons"]
 
@@ -97,6 +97,8 @@ def road_corridors(
     cell_size, extend_dist, raster_range
       Passed to :meth:`ROI.from_polygons`.
 
+    Notes
+    -----
     The sensor is inside the road, at least 1 m from its edges; heading is drawn in whole
     degrees in [-90, 90] and shrinks to 0 (road along x).
     """
@@ -183,11 +185,15 @@ def rois(
     kinds : sequence of {"corridor", "curved", "junction", "polygon"}
       Which strategies to mix ("corridor" is straight roads only).
     """
-    kinds = tuple(kinds) if not isinstance(kinds, str) else (kinds,)
-    unknown = [kind for kind in kinds if kind not in _KINDS]
-    if unknown or not kinds:
+    chosen: tuple[str, ...] = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+    unknown = [kind for kind in chosen if kind not in _KINDS]
+    if unknown or not chosen:
         raise InvalidArgument(f"kinds={kinds!r} must be a non-empty subset of {_KINDS}")
-    options = {"cell_size": cell_size, "extend_dist": extend_dist, "raster_range": raster_range}
+    options: dict[str, Any] = {
+        "cell_size": cell_size,
+        "extend_dist": extend_dist,
+        "raster_range": raster_range,
+    }
     # Ordered simplest first: st.one_of shrinks toward its first branch.
     builders = {
         "corridor": lambda: road_corridors(curved=False, **options),
@@ -195,4 +201,4 @@ def rois(
         "junction": lambda: junctions(**options),
         "polygon": lambda: simple_polygons(**options),
     }
-    return st.one_of([builders[kind]() for kind in _KINDS if kind in kinds])
+    return st.one_of([builders[kind]() for kind in _KINDS if kind in chosen])

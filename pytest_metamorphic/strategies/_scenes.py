@@ -1,8 +1,8 @@
 """Strategies for synthetic LiDAR scenes and the frames rendered from them.
 
-:func:`scenes` draws a small :class:`~pytest_metamorphic.lidar.scene.Scene`: an ROI, a
+:func:`scenes` draws a small :class:`~pytest_metamorphic.lidar.synthetic.Scene`: an ROI, a
 sensor height, a list of obstacles on the road (class sizes from
-:data:`~pytest_metamorphic.lidar.obstacles.SIZE_PRIORS`, headings in 5 degree steps) and
+:data:`~pytest_metamorphic.lidar.model.obstacles.SIZE_PRIORS`, headings in 5 degree steps) and
 a list of background objects outside the ROI (poles, trees, buildings).
 
 Obstacles occupy distinct *slots*: points of an 8 m lattice through (10, 0) that lie deep
@@ -14,7 +14,7 @@ fewer obstacles, then toward a car of average size, heading along x, 10 m ahead,
 straight road.
 
 :func:`scene_frames` renders drawn scenes with the HDL-64E model into
-:class:`~pytest_metamorphic.lidar.frame.Frame` objects that carry their ground truth.
+:class:`~pytest_metamorphic.lidar.model.frame.Frame` objects that carry their ground truth.
 """
 
 from __future__ import annotations
@@ -22,15 +22,23 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 from hypothesis import assume
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.layout import (
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.obstacles import LABELS, Label
+from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.synthetic import (
+    CastEngine,
+    MeshShape,
+    Scene,
+    render,
+)
+from pytest_metamorphic.lidar.synthetic.layout import (
     BACKGROUND_ORDER,
     EGO_CLEARANCE,
     HEIGHT_STEPS,
@@ -42,14 +50,6 @@ from pytest_metamorphic.lidar.layout import (
     clutter_radices,
     layout_scene,
     obstacle_radices,
-)
-from pytest_metamorphic.lidar.obstacles import LABELS, Label
-from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scene import (
-    CastEngine,
-    MeshShape,
-    Scene,
-    render,
 )
 from pytest_metamorphic.strategies._roi import rois
 
@@ -146,6 +146,8 @@ def scenes(
     max_distance : float
       Farthest obstacle centre, metres.
 
+    Notes
+    -----
     Sensor height is 1.73 m (KITTI) +10/-17 cm in 1 cm steps.
     """
     min_obstacles = _check_count(min_obstacles, "min_obstacles")
@@ -155,8 +157,8 @@ def scenes(
         raise InvalidArgument(
             f"max_obstacles={max_obstacles} must be >= min_obstacles={min_obstacles}"
         )
-    labels = (labels,) if isinstance(labels, str) else tuple(labels)
-    if not labels or any(label not in LABELS for label in labels):
+    chosen: tuple[Label, ...] = (cast(Label, labels),) if isinstance(labels, str) else tuple(labels)
+    if not chosen or any(label not in LABELS for label in chosen):
         raise InvalidArgument(f"labels={labels!r} must be a non-empty subset of {LABELS}")
     if isinstance(max_distance, bool) or not isinstance(max_distance, (int, float)):
         raise InvalidArgument(f"max_distance={max_distance!r} must be a number of metres")
@@ -170,11 +172,11 @@ def scenes(
         roi_strategy = roi
     else:
         raise InvalidArgument(f"roi must be an ROI, a strategy of ROI or None, got {roi!r}")
-    user_shapes = _user_shapes(shapes, labels)
+    user_shapes = _user_shapes(shapes, chosen)
     radices = obstacle_radices(1 + max((len(v) for v in user_shapes.values()), default=0))
     obstacle = st.builds(
         ObstacleSpec,
-        st.sampled_from(labels),
+        st.sampled_from(chosen),
         st.integers(0, SLOT_CHOICES - 1),
         st.integers(0, math.prod(radices) - 1),
     )

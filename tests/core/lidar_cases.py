@@ -14,13 +14,13 @@ import numpy as np
 
 import conftest
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.evaluation import kitti_label_region
-from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI
 from pytest_metamorphic.lidar.io import read_bin
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
+from pytest_metamorphic.lidar.synthetic import BackgroundObject, Obstacle, Scene, render
 from pytest_metamorphic.relations.lidar import mr1_subset
 
 GROUND_Z = -1.73

@@ -18,17 +18,16 @@ from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic.core.perturbation import as_reducible
 from pytest_metamorphic.core.reduction import reduce_followup
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.minimize import (
+from pytest_metamorphic.lidar.followups.minimize import (
     IndexEditReduction,
     InjectedPointsReduction,
     changed_obstacles,
-    footprint_distances,
     lost_obstacles,
 )
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception import ReferencePerception
-from pytest_metamorphic.lidar.perception.mutants import mutant
-from pytest_metamorphic.lidar.perturb import DropPoints, DuplicatePoints, NoiseOutsideROI
+from pytest_metamorphic.lidar.followups.perturb import DropPoints, DuplicatePoints, NoiseOutsideROI
+from pytest_metamorphic.lidar.model.obstacles import Box, footprint_distances
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
 from pytest_metamorphic.relations.lidar import duplication_invariance, mr1_subset, outside_removal
 from tests.core.lidar_cases import (
     MR1,

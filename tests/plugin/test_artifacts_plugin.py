@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy  # noqa: F401
 import pytest
 
-import pytest_metamorphic.lidar.frame
 import pytest_metamorphic.lidar.io
+import pytest_metamorphic.lidar.model.frame
 import pytest_metamorphic.reports.artifacts
 import pytest_metamorphic.reports.replay  # noqa: F401
 

@@ -14,23 +14,23 @@ from hypothesis import strategies as st
 import conftest
 from pytest_metamorphic import InvalidArgument, metamorphic
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.evaluation import kitti_label_region
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.io import read_bin
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception import ReferencePerception
-from pytest_metamorphic.lidar.perception.mutants import MUTANTS, mutant
-from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
-from pytest_metamorphic.lidar.perturb import (
+from pytest_metamorphic.lidar.followups.perturb import (
     DropPoints,
     DuplicatePoints,
     NoiseOutsideROI,
     PermutePoints,
     RotateAboutSensor,
 )
+from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX, ShiftAlongX
+from pytest_metamorphic.lidar.io import read_bin
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scene import BackgroundObject, Obstacle, Scene, render
-from pytest_metamorphic.lidar.symmetry import MirrorAcrossX, ShiftAlongX
+from pytest_metamorphic.lidar.synthetic import BackgroundObject, Obstacle, Scene, render
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+from pytest_metamorphic.lidar.systems.perception.mutants import MUTANTS, mutant
+from pytest_metamorphic.lidar.systems.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.relations.lidar import (
     RotatedObstacles,
     duplication_invariance,

@@ -10,13 +10,13 @@ import pytest
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.reduction import reduce_followup
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.faults import DropAzimuthBlock, DropRings
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perception import ReferencePerception
-from pytest_metamorphic.lidar.perception.mutants import mutant
-from pytest_metamorphic.lidar.perception.whole_scene import WholeScenePerception
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
+from pytest_metamorphic.lidar.followups.faults import DropAzimuthBlock, DropRings
+from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
+from pytest_metamorphic.lidar.systems.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.relations.lidar import (
     CoveredObstaclesKept,
     beam_loss,
@@ -112,7 +112,7 @@ def test_a_beam_loss_violation_reduces_to_the_fewest_dead_beams() -> None:
 
 
 def _frame_with_box(points: np.ndarray) -> Frame:
-    from pytest_metamorphic.lidar.cloud import PointCloud
+    from pytest_metamorphic.lidar.model.cloud import PointCloud
 
     cloud = PointCloud(np.column_stack([points, np.zeros(len(points))]).astype(np.float32))
     return Frame(cloud, roi=None)

@@ -6,12 +6,12 @@ import pytest
 
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box, CenterDistanceMatcher
+from pytest_metamorphic.lidar.judging.scope import judged_equal, obstacles_kept
+from pytest_metamorphic.lidar.judging.tolerance import EXACT, LEARNED, Tolerance, as_tolerance
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box, CenterDistanceMatcher
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scope import judged_equal, obstacles_kept
-from pytest_metamorphic.lidar.tolerance import EXACT, LEARNED, Tolerance, as_tolerance
 from pytest_metamorphic.relations.lidar import lidar_relations
 
 ROAD = ROI.from_polygons([[(0, -6), (50, -6), (50, 6), (0, 6)]])
@@ -77,7 +77,7 @@ def test_profiles_and_the_relation_library() -> None:
 
 
 def test_a_mirrored_object_in_two_pieces_keeps_its_partner_under_the_learned_profile() -> None:
-    from pytest_metamorphic.lidar.equivariance import moved_obstacles
+    from pytest_metamorphic.lidar.judging.equivariance import moved_obstacles
 
     cyclist = Box((12.0, -3.0, -1.0), (1.9, 0.6, 1.5), 0.7, "cyclist", points=800)
     mirrored = cyclist.mirrored()

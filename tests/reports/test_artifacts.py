@@ -21,13 +21,13 @@ from pytest_metamorphic import Followup, MetamorphicCase, MetamorphicViolation, 
 from pytest_metamorphic import relations as rel
 from pytest_metamorphic.core.errors import DataError
 from pytest_metamorphic.core.stats import Recorder, recording
-from pytest_metamorphic.lidar.edit import RemoveObject
-from pytest_metamorphic.lidar.insert import InsertObject
+from pytest_metamorphic.lidar.followups.edit import RemoveObject
+from pytest_metamorphic.lidar.followups.insert import InsertObject
+from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI
 from pytest_metamorphic.lidar.io import read_bag, read_pcd
-from pytest_metamorphic.lidar.perception import ReferencePerception
-from pytest_metamorphic.lidar.perception.mutants import mutant
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
 from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
 from pytest_metamorphic.relations.lidar import (
     mr1_subset,
     object_insertion,

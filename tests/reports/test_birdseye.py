@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import Box
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.roi import ROI
 
 matplotlib = pytest.importorskip("matplotlib")

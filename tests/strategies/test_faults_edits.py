@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.edit import RemoveObject
-from pytest_metamorphic.lidar.faults import DropRings
-from pytest_metamorphic.lidar.insert import InsertObject
+from pytest_metamorphic.lidar.followups.edit import RemoveObject
+from pytest_metamorphic.lidar.followups.faults import DropRings
+from pytest_metamorphic.lidar.followups.insert import InsertObject
 from tests.core.lidar_cases import street
 from tests.deterministic import find
 

@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from pytest_metamorphic import metamorphic, relations
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import write_bag
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 from tests.deterministic import find
 
 KITTI = "kitti_openpcdet/training"

@@ -13,11 +13,11 @@ from hypothesis import strategies as st
 from pytest_metamorphic import MetamorphicRelation, metamorphic, relations
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument, MetamorphicViolation
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS, Box
-from pytest_metamorphic.lidar.perturb import NoiseOutsideROI
+from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import SIZE_PRIORS, Box
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scene import Obstacle, Scene, render
+from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
 from pytest_metamorphic.strategies import (
     dropped_points,
     duplicated_points,

@@ -10,12 +10,12 @@ import trimesh
 from hypothesis import HealthCheck, Phase, given, settings
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.obstacles import SIZE_PRIORS
+from pytest_metamorphic.lidar.model.obstacles import SIZE_PRIORS
 from pytest_metamorphic.lidar.roi import ROI
-from pytest_metamorphic.lidar.scene import MeshShape, Scene
+from pytest_metamorphic.lidar.synthetic import MeshShape, Scene
 from pytest_metamorphic.strategies import road_corridors, scene_frames, scenes
 from tests.deterministic import find
-from tests.lidar.test_layout import check_placement
+from tests.lidar.synthetic.test_layout import check_placement
 
 NO_DB = settings(database=None, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 # Shrink-quality checks replay the same search every run.

@@ -11,9 +11,9 @@ Results are appended to a JSONL log as each source finishes (flushed and fsynced
 interrupted campaign loses at most the source in progress and resumes where it stopped.
 
 The package's modules follow that story: :mod:`.spec` (what a campaign is),
-:mod:`.results` (tallies that merge exactly), :mod:`.log` (the JSONL log), :mod:`.run`
-(this process), :mod:`.cluster` (a Dask cluster), :mod:`.system` (systems built once per
-process), :mod:`.testing` (pytest tests).
+:mod:`.results` (tallies that merge exactly), :mod:`.log` (the JSONL log), :mod:`.source`
+(one source's record), :mod:`.run` (this process), :mod:`.cluster` (a Dask cluster),
+:mod:`.system` (systems built once per process), :mod:`.testing` (pytest tests).
 """
 
 from pytest_metamorphic.core.campaign.log import (

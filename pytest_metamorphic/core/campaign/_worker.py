@@ -12,7 +12,7 @@ from typing import Any
 from distributed import get_worker
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from pytest_metamorphic.core.campaign.run import run_source
+from pytest_metamorphic.core.campaign.source import run_source
 from pytest_metamorphic.core.campaign.spec import Campaign
 
 # token -> the campaign, loaded once in this worker process (with the system it builds).

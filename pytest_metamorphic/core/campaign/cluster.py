@@ -1,7 +1,7 @@
 """Running a campaign on a Dask cluster (the optional ``dask`` extra).
 
 The unit of work is one source, or ``batch_size`` sources, with all their sizes and
-follow-ups: the same :func:`~pytest_metamorphic.core.campaign.run.run_source` a process
+follow-ups: the same :func:`~pytest_metamorphic.core.campaign.source.run_source` a process
 runs, so every record, and therefore the merged result, is identical to a one-process run
 with the same seed. Only the controller writes the log, as results come back: a worker
 that dies loses nothing (the scheduler runs its units again) and counts nothing twice

@@ -10,7 +10,7 @@ import contextlib
 import json
 import os
 import time
-from collections.abc import Callable, Container, Iterable, Iterator
+from collections.abc import Callable, Collection, Container, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -170,7 +170,7 @@ class LogFile:
         return [self.path]
 
     def read(
-        self, campaign: Campaign, indices: Container[int], *, keep_examples: int = 20
+        self, campaign: Campaign, indices: Collection[int], *, keep_examples: int = 20
     ) -> CampaignResult:
         result = _empty_result(campaign, keep_examples)
         _tally_file(result, self.path, campaign.header(), indices)
@@ -214,7 +214,7 @@ class ShardLogs:
         return [self.path(shard) for shard in range(self.shards)]
 
     def read(
-        self, campaign: Campaign, indices: Container[int], *, keep_examples: int = 20
+        self, campaign: Campaign, indices: Collection[int], *, keep_examples: int = 20
     ) -> CampaignResult:
         result = _empty_result(campaign, keep_examples)
         indices = indices if isinstance(indices, (range, set, frozenset)) else set(indices)
@@ -257,7 +257,7 @@ class _NoLog:
         return []
 
     def read(
-        self, campaign: Campaign, indices: Container[int], *, keep_examples: int = 20
+        self, campaign: Campaign, indices: Collection[int], *, keep_examples: int = 20
     ) -> CampaignResult:
         return _empty_result(campaign, keep_examples)
 

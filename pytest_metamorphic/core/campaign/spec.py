@@ -42,7 +42,7 @@ class Campaign:
     category : callable(element) -> str, optional
         Category of an output element (e.g. a box's label) for per-category breakdowns.
     counted : callable(output, input) -> collection, optional
-        The part of an output the table counts (|O| vs |O'|, categories): for a scoped
+        The part of an output the table counts (``|O|`` vs ``|O'|``, categories): for a scoped
         relation, what it judges (e.g. obstacles inside the ROI). Default: all of it.
     size_label : str
         What a size is, as the reports name it (default ``"n"``, the paper's noise points;

@@ -22,7 +22,8 @@ class SystemFactory:
 
     Parameters
     ----------
-    factory : callable(*args, **kwargs) -> callable(input) -> output
+    factory : callable
+        ``factory(*args, **kwargs)`` builds the system, a ``callable(input) -> output``.
         Importable by the workers (a module-level function or class).
     *args, **kwargs
         Passed to ``factory``; they must be picklable (paths, numbers, not open files).
@@ -66,7 +67,7 @@ class SystemFactory:
         return {"factory": self.factory, "args": self.args, "kwargs": self.kwargs}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(state["factory"], *state["args"], **state["kwargs"])
+        SystemFactory.__init__(self, state["factory"], *state["args"], **state["kwargs"])
 
     def __repr__(self) -> str:
         name = getattr(self.factory, "__qualname__", repr(self.factory))

@@ -41,6 +41,8 @@ class _Actor:
         self.scenario, self.name, self.kind = scenario, name, kind
         self.footprint, self.motion = footprint, motion
         if motion is not None:
+            if times is None:
+                raise ValueError("a moving actor needs the simulation's times")
             self.along, self.across = motion.extent_along_road, motion.extent_across_road
             # Crossing dummies face across the road, longitudinal ones along it.
             self.turn = math.copysign(math.pi / 2, motion.dd) if abs(motion.dd) > 0.5 else 0.0
@@ -174,7 +176,7 @@ class _Run:
         # there (later than the car when a follow-up keeps the dummy's own timing).
         self.t_end = max(scenario.time_to_collision_point, scenario.dummy_arrival) + _EXTRA_TIME
         self.steps = math.ceil(self.t_end / dt)
-        self.times = np.arange(self.steps + 1) * dt
+        self.times = np.arange(self.steps + 1, dtype=np.float64) * dt
         self.actors = _actors(scenario, self.times)
         road, vehicle = scenario.road, scenario.vehicle
         lane_right, lane_left = road.lane_bounds(scenario.ego_lane)

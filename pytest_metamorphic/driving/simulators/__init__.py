@@ -42,6 +42,7 @@ __all__ = ["Simulator", "builtin", "check_simulator", "run_simulator"]
 
 Controller = Callable[[Observation], "float | BrakeCommand"]
 Simulator = Callable[[Scenario, "Controller | None"], SimulationResult]
+"""``simulator(scenario, controller)`` -> :class:`SimulationResult` (``None``: no AEB)."""
 
 
 def builtin(scenario: Scenario, controller: Controller | None) -> SimulationResult:
@@ -57,7 +58,7 @@ def check_simulator(simulator: Any) -> Simulator:
         raise InvalidArgument(
             f"simulator={simulator!r} must be callable(scenario, controller) -> SimulationResult"
         )
-    return simulator  # type: ignore[no-any-return]
+    return simulator
 
 
 def run_simulator(

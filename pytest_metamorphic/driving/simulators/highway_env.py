@@ -35,6 +35,7 @@ from pytest_metamorphic.driving.kinematics import (
     Track,
 )
 from pytest_metamorphic.driving.kinematics.brakes import Brakes, loop_settings
+from pytest_metamorphic.driving.kinematics.geometry import Box
 from pytest_metamorphic.driving.kinematics.simulator import _classify
 from pytest_metamorphic.driving.scenario import PedestrianMotion, Scenario
 
@@ -268,5 +269,11 @@ def _resize(actor: Any, length: float, width: float) -> None:
     actor.diagonal = math.hypot(length, width)
 
 
-def _box(actor: Any) -> tuple[tuple[float, float], ...]:
-    return tuple((float(x), float(y)) for x, y in actor.polygon()[:4])
+def _box(actor: Any) -> Box:
+    (x0, y0), (x1, y1), (x2, y2), (x3, y3) = actor.polygon()[:4]
+    return (
+        (float(x0), float(y0)),
+        (float(x1), float(y1)),
+        (float(x2), float(y2)),
+        (float(x3), float(y3)),
+    )

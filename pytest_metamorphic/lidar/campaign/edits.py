@@ -19,9 +19,8 @@ from pytest_metamorphic.lidar.campaign.sources import (
     _severities,
     scoped_campaign,
 )
-from pytest_metamorphic.lidar.edit import OthersKept, RemoveObject, removal_candidates
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.insert import (
+from pytest_metamorphic.lidar.followups.edit import OthersKept, RemoveObject, removal_candidates
+from pytest_metamorphic.lidar.followups.insert import (
     InsertedDetected,
     InsertObject,
     ObjectTemplate,
@@ -29,8 +28,9 @@ from pytest_metamorphic.lidar.insert import (
     object_templates,
 )
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 
 __all__ = ["EDIT_SEVERITIES", "edit_campaign", "insertion_followup", "removal_followup"]
 
@@ -103,8 +103,8 @@ def edit_campaign(
     system : callable(Frame) -> sequence of Box
     edit : {"insertion", "removal"}
         Insertion (severity: the range, in percent of the range the object was seen at;
-        checked with :class:`~pytest_metamorphic.lidar.insert.InsertedDetected` and
-        :class:`~pytest_metamorphic.lidar.edit.OthersKept`) or removal (severity: which
+        checked with :class:`~pytest_metamorphic.lidar.followups.insert.InsertedDetected` and
+        :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept`) or removal (severity: which
         object, nearest first; checked with ``OthersKept``). A follow-up that finds no
         place or no object edits nothing and holds.
     name, frames, sources, followups, seed, scope

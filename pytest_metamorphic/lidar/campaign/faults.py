@@ -17,20 +17,20 @@ from pytest_metamorphic.lidar.campaign.sources import (
     _severities,
     scoped_campaign,
 )
-from pytest_metamorphic.lidar.faults import (
+from pytest_metamorphic.lidar.followups.faults import (
     PACKET_DEGREES,
     CoveredObstaclesKept,
     DropAzimuthBlock,
     DropRings,
     QuantizeRange,
 )
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.hdl64 import HDL64E
+from pytest_metamorphic.lidar.followups.perturb import SEED_BITS
+from pytest_metamorphic.lidar.followups.weather import Weather
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perturb import SEED_BITS
-from pytest_metamorphic.lidar.scope import ScopeLike
-from pytest_metamorphic.lidar.weather import Weather
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E
+from pytest_metamorphic.lidar.model.obstacles import Box
 
 __all__ = [
     "FAULT_SEVERITIES",
@@ -79,7 +79,8 @@ def lost_packets_followup(frame: Frame, severity: int, rng: np.random.Generator)
 
 
 def fog_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
-    """Fog of ``severity`` metres visibility (see :mod:`pytest_metamorphic.lidar.weather`)."""
+    """Fog of ``severity`` metres visibility (see
+    :mod:`pytest_metamorphic.lidar.followups.weather`)."""
     weather = Weather(float(severity), "fog", int(rng.integers(2**SEED_BITS)))
     return Followup(weather.apply(frame), params=weather.params())
 
@@ -148,7 +149,7 @@ def fault_campaign(
         Default :data:`FAULT_SEVERITIES` for the fault.
     min_points, min_share, min_height_share, min_detected
         What counts as well covered and as kept
-        (:class:`~pytest_metamorphic.lidar.faults.CoveredObstaclesKept`); ``min_share``
+        (:class:`~pytest_metamorphic.lidar.followups.faults.CoveredObstaclesKept`); ``min_share``
         defaults to 0.8 for fog and rain (as
         :func:`~pytest_metamorphic.relations.lidar.adverse_weather`) and 0.5 otherwise.
     """

@@ -3,7 +3,7 @@
 For every source frame, and every noise size n (the paper's 10, 100 and 1000 points),
 ``followups`` follow-ups add n points uniformly outside the ROI (z and intensity uniform
 over the frame's ranges); the system under test runs once on the source and once per
-follow-up. The campaign counts the paper's table (|O| > |O'|, =, <), strict MR1
+follow-up. The campaign counts the paper's table (``|O| > |O'|``, ``=``, ``<``), strict MR1
 violations (some source obstacle without its own match in the follow-up, the
 :func:`~pytest_metamorphic.relations.lidar.mr1_subset` relation) and a per-class
 breakdown (the paper's Fig. 3), each with a Wilson 95% interval.
@@ -27,11 +27,11 @@ from pytest_metamorphic.lidar.campaign.sources import (
     SourceFn,
     scoped_campaign,
 )
-from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.followups.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box, IoUMatcher
-from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES, NoiseOutsideROI
-from pytest_metamorphic.lidar.scope import ScopeLike, obstacles_kept
+from pytest_metamorphic.lidar.judging.scope import ScopeLike, obstacles_kept
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box, IoUMatcher
 
 __all__ = ["mr1_campaign", "noise_followup"]
 
@@ -81,7 +81,7 @@ def mr1_campaign(
         When a follow-up obstacle is the same as a source one (default: same label and
         bird's-eye IoU >= 0.5, as :func:`~pytest_metamorphic.relations.lidar.mr1_subset`).
     scope : "roi", "all" or ObstacleScope
-        Which obstacles are judged and counted (:mod:`pytest_metamorphic.lidar.scope`):
+        Which obstacles are judged and counted (:mod:`pytest_metamorphic.lidar.judging.scope`):
         by default those with at least half their footprint inside the ROI, so a detector
         reporting the whole sweep is not blamed for changes off the road (the table's
         "out of scope" column counts those pairs). ``"all"``: every obstacle.

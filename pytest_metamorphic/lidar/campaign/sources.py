@@ -12,13 +12,13 @@ import numpy as np
 from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import Relation
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.layout import random_scene
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.scene import render
-from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.synthetic import render
+from pytest_metamorphic.lidar.synthetic.layout import random_scene
 
 __all__ = [
     "DEFAULT_SYNTHETIC_SOURCES",
@@ -35,7 +35,7 @@ DEFAULT_SYNTHETIC_SOURCES = 1000  # the paper's frame count
 def synthetic_frames(*, beams: BeamLayout = HDL64E, **scene_options: Any) -> SourceFn:
     """Campaign sources: an independent random street scene per source, rendered.
 
-    ``scene_options`` go to :func:`~pytest_metamorphic.lidar.layout.random_scene` (road
+    ``scene_options`` go to :func:`~pytest_metamorphic.lidar.synthetic.layout.random_scene` (road
     kinds, obstacle counts and classes, clutter). The render's range noise is seeded from
     the source's own generator, so source ``i`` is the same frame in every run.
     """
@@ -88,7 +88,7 @@ def box_label(box: Box) -> str:
     if not isinstance(box, Box):
         raise InvalidArgument(
             f"the system under test returned {box!r} in its obstacle list; an MR1 "
-            "campaign's system must return a list of Box (pytest_metamorphic.lidar.obstacles)"
+            "campaign's system must return a list of Box (pytest_metamorphic.lidar.model.obstacles)"
         )
     return box.label
 

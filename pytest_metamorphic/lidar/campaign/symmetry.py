@@ -18,13 +18,13 @@ from pytest_metamorphic.lidar.campaign.sources import (
     _severities,
     scoped_campaign,
 )
-from pytest_metamorphic.lidar.equivariance import moved_obstacles
-from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.followups.perturb import RotateAboutSensor
+from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX, ShiftAlongX
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.obstacles import Box
-from pytest_metamorphic.lidar.perturb import RotateAboutSensor
-from pytest_metamorphic.lidar.scope import ScopeLike
-from pytest_metamorphic.lidar.symmetry import MirrorAcrossX, ShiftAlongX
+from pytest_metamorphic.lidar.judging.equivariance import moved_obstacles
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 
 __all__ = [
     "SYMMETRY_SEVERITIES",
@@ -100,7 +100,7 @@ def symmetry_campaign(
         (severity: metres, forward or back at random; default 1, 2, 5, 10). Checked as
         :func:`~pytest_metamorphic.relations.lidar.rotation_equivariance`,
         ``mirror_symmetry`` and ``translation_equivariance`` check (see
-        :class:`~pytest_metamorphic.lidar.equivariance.MovedObstacles`).
+        :class:`~pytest_metamorphic.lidar.judging.equivariance.MovedObstacles`).
     name, frames, sources, followups, seed, scope
         As for :func:`~pytest_metamorphic.lidar.campaign.mr1_campaign`.
     severities : sequence of int, optional

@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Literal
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.io._common import ZerosPolicy, check_policies
 from pytest_metamorphic.lidar.io.apollo import (
     ApolloPose,
@@ -49,6 +48,7 @@ from pytest_metamorphic.lidar.io.rosbag import (
     read_bag,
     write_bag,
 )
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 
 __all__ = [
     "ApolloPose",

@@ -19,12 +19,12 @@ import shutil
 import uuid
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument, MetamorphicError
-from pytest_metamorphic.lidar.cloud import COLUMNS, NonFinitePolicy, PointCloud
+from pytest_metamorphic.lidar.model.cloud import COLUMNS, NonFinitePolicy, PointCloud
 
 __all__ = [
     "ZerosPolicy",
@@ -258,7 +258,8 @@ def _points_of_records(records: np.ndarray, owned: bool) -> np.ndarray | None:
     if whole < count:
         for k, axis in enumerate("xyz"):
             points[whole:, k] = records[axis][whole:]
-    intensity = (records.dtype.fields or {}).get("intensity")
+    fields: Mapping[str, tuple[Any, ...]] = records.dtype.fields or {}
+    intensity = fields.get("intensity")
     if intensity is None:
         points[:, 3] = 0
     elif intensity != (_F4, start + 12):
@@ -271,7 +272,7 @@ def _points_of_records(records: np.ndarray, owned: bool) -> np.ndarray | None:
 @functools.lru_cache(maxsize=64)
 def _xyz_offset(dtype: np.dtype) -> int | None:
     """Byte offset of x when x, y, z are consecutive ``<f4`` in ``dtype``, else None."""
-    fields = dtype.fields or {}
+    fields: Mapping[str, tuple[Any, ...]] = dtype.fields or {}
     start = fields["x"][1]
     consecutive = all(fields[axis] == (_F4, start + 4 * k) for k, axis in enumerate("xyz"))
     return start if consecutive else None

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import DataError
-from pytest_metamorphic.lidar.cloud import PointCloud
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 __all__ = [
     "ApolloPose",

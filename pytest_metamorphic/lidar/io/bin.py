@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.io._common import replacing
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 
 __all__ = ["read_bin", "write_bin"]
 

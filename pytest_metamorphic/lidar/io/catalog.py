@@ -20,11 +20,11 @@ from typing import Any, Literal
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
-from pytest_metamorphic.lidar.frame import Frame
 from pytest_metamorphic.lidar.io import detect_format, read_cloud, read_kitti_labels
 from pytest_metamorphic.lidar.io._common import ZerosPolicy, check_policies
 from pytest_metamorphic.lidar.io.rosbag import BagIndex, index_bag
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
+from pytest_metamorphic.lidar.model.frame import Frame
 
 __all__ = ["FrameCatalog"]
 
@@ -53,6 +53,8 @@ class FrameCatalog:
         Frames kept in memory, least recently loaded first out. Cached frames are shared,
         so their arrays are read-only.
 
+    Notes
+    -----
     Indexing is cheap (a sorted file list, or a bag's message index) and reports every
     "nothing to load" problem at once; :meth:`load` reads one frame.
     """

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import DataError
-from pytest_metamorphic.lidar.obstacles import Box, Label
+from pytest_metamorphic.lidar.model.obstacles import Box, Label
 
 __all__ = [
     "KITTI_LABELS",
@@ -92,7 +92,7 @@ class KittiCalibration:
         rect[:3, :3] = self.R0_rect
         velo_to_cam = np.eye(4)
         velo_to_cam[:3, :] = self.Tr_velo_to_cam
-        return np.linalg.inv(rect @ velo_to_cam)
+        return np.asarray(np.linalg.inv(rect @ velo_to_cam), dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -152,17 +152,17 @@ def read_kitti_calibration(path: str | os.PathLike[str]) -> KittiCalibration:
         entries[key.strip()] = _numbers(rest.split(), path, f"line {number} ({key.strip()})")
     matrices = {}
     for name, shape in (("P2", (3, 4)), ("R0_rect", (3, 3)), ("Tr_velo_to_cam", (3, 4))):
-        key = next((k for k in _KEYS[name] if k in entries), None)
-        if key is None:
+        found = next((k for k in _KEYS[name] if k in entries), None)
+        if found is None:
             raise DataError(
                 f"no {name} matrix (keys present: {sorted(entries) or 'none'}); "
                 "is this a KITTI object calibration file?",
                 path=path,
             )
-        values = entries[key]
+        values = entries[found]
         if len(values) != shape[0] * shape[1]:
             raise DataError(
-                f"{key} has {len(values)} numbers, expected {shape[0] * shape[1]}", path=path
+                f"{found} has {len(values)} numbers, expected {shape[0] * shape[1]}", path=path
             )
         matrices[name] = np.array(values, np.float64).reshape(shape)
     if abs(np.linalg.det(matrices["R0_rect"])) < 1e-6:
@@ -249,7 +249,7 @@ def _to_lidar(
     # Heading: rotation_y = 0 faces camera +x; the direction is (cos r, 0, -sin r).
     heading = to_velo[:3, :3] @ np.array([math.cos(rotation_y), 0.0, -math.sin(rotation_y)])
     yaw = math.atan2(heading[1], heading[0])
-    return Box(tuple(centre[:3]), (length, width, height), yaw)  # type: ignore[arg-type]
+    return Box(tuple(centre[:3]), (length, width, height), yaw)
 
 
 def sensor_calibration() -> KittiCalibration:

@@ -1,3 +1,9 @@
+# Copyright 2026 The pytest-metamorphic Authors
+# Derived from Apollo (https://github.com/ApolloAuto/apollo), Copyright 2017-2018 The Apollo
+# Authors, licensed under the Apache License, Version 2.0.
+# What it derives from: the HD-map ROI filter's scan conversion (polygon_mask.h, bitmap2d.cc).
+# Changed: re-implemented in Python and NumPy, with the differences stated below. See NOTICE.
+# SPDX-License-Identifier: Apache-2.0
 """Apollo's scan conversion of ROI polygons into a bird's-eye bitmap (``polygon_mask.h``)."""
 
 from __future__ import annotations

@@ -1,3 +1,9 @@
+# Copyright 2026 The pytest-metamorphic Authors
+# Derived from Apollo (https://github.com/ApolloAuto/apollo), Copyright 2017-2018 The Apollo
+# Authors, licensed under the Apache License, Version 2.0.
+# What it derives from: the HD-map ROI filter (hdmap_roi_filter.cc).
+# Changed: re-implemented in Python and NumPy, with the differences stated below. See NOTICE.
+# SPDX-License-Identifier: Apache-2.0
 """Regions of interest: HD-map road and junction polygons, exact and Apollo-rasterised.
 
 Apollo's HD-map ROI filter does not test points against the polygons. It scan-converts
@@ -195,6 +201,8 @@ class ROI:
           ``width : float`` (metres, > 0), like the roads of
           :mod:`pytest_metamorphic.driving.osm`.
 
+        Notes
+        -----
         Each segment becomes a rectangle and each vertex a 16-gon of the road's half-width
         (round joins and ends: every point within ``width / 2`` of the centreline, up to
         the 16-gon's 2 % chord error). Where roads meet, their buffers overlap and

@@ -1,28 +1,28 @@
 """Ready metamorphic relations for LiDAR obstacle perception (systems ``frame -> list[Box]``).
 
 Each function returns a :class:`~pytest_metamorphic.core.engine.MetamorphicRelation`
-(an input transform of a :class:`~pytest_metamorphic.lidar.frame.Frame` plus an output
+(an input transform of a :class:`~pytest_metamorphic.lidar.model.frame.Frame` plus an output
 relation) to pass to ``@metamorphic(relations=[...])``; :func:`lidar_relations` returns
 them all. The source input must be a ``Frame`` with an ROI (``frame.roi``).
 
-===============================  ===================================  ======================
-relation                         follow-up                            expected output
-===============================  ===================================  ======================
-:func:`mr1_subset`               noise outside the ROI (paper's MR1)  O ⊆ O' (one-to-one)
-:func:`mr1_cardinality`          the same                             abs O <= abs O'
-:func:`outside_noise_invariance` the same                             O == O'
-:func:`outside_removal`          outside-ROI points removed           O == O'
-:func:`permutation_invariance`   points reordered                     O == O'
-:func:`duplication_invariance`   some points repeated                 O == O'
-:func:`rotation_equivariance`    cloud and ROI turned by θ            O turned by θ
-:func:`mirror_symmetry`          cloud and ROI mirrored (y -> -y)     O mirrored
-:func:`beam_loss`                1-4 lasers return nothing            well-covered O kept
-:func:`packet_loss`              1-10 packets (azimuth blocks) lost   well-covered O kept
-:func:`range_quantization`       ranges rounded to 5/10/20 cm         O kept
-:func:`object_removal`           one car/pedestrian/cyclist removed   the others kept
-:func:`object_insertion`         a real object put on free ground     it is found, others kept
-:func:`adverse_weather`          fog or rain of 200/100/50 m          well-covered O kept
-===============================  ===================================  ======================
+================================  ===================================  ======================
+relation                          follow-up                            expected output
+================================  ===================================  ======================
+:func:`mr1_subset`                noise outside the ROI (paper's MR1)  O ⊆ O' (one-to-one)
+:func:`mr1_cardinality`           the same                             abs O <= abs O'
+:func:`outside_noise_invariance`  the same                             O == O'
+:func:`outside_removal`           outside-ROI points removed           O == O'
+:func:`permutation_invariance`    points reordered                     O == O'
+:func:`duplication_invariance`    some points repeated                 O == O'
+:func:`rotation_equivariance`     cloud and ROI turned by θ            O turned by θ
+:func:`mirror_symmetry`           cloud and ROI mirrored (y -> -y)     O mirrored
+:func:`beam_loss`                 1-4 lasers return nothing            well-covered O kept
+:func:`packet_loss`               1-10 packets (azimuth blocks) lost   well-covered O kept
+:func:`range_quantization`        ranges rounded to 5/10/20 cm         O kept
+:func:`object_removal`            one car/pedestrian/cyclist removed   the others kept
+:func:`object_insertion`          a real object put on free ground     it is found, others kept
+:func:`adverse_weather`           fog or rain of 200/100/50 m          well-covered O kept
+================================  ===================================  ======================
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
 100 and 1000) scattered outside the ROI, z and intensity uniform over the frame's ranges, "outside"
@@ -32,7 +32,8 @@ says, every source obstacle keeping its own match
 (:func:`~pytest_metamorphic.core.matching.one_to_one`) in the follow-up.
 
 The equalities are exact: a perception stack that filters by ROI first and treats the
-cloud as a set of points (as :class:`~pytest_metamorphic.lidar.perception.ReferencePerception`
+cloud as a set of points (as
+:class:`~pytest_metamorphic.lidar.systems.perception.ReferencePerception`
 does) cannot tell the inputs apart. Rotation and reflection move the obstacles; see
 :func:`rotation_equivariance` and :func:`mirror_symmetry` for their tolerances.
 :func:`translation_equivariance` (a shift along x by whole grid cells) is optional and not
@@ -44,9 +45,9 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from pytest_metamorphic.core.engine import MetamorphicRelation
-from pytest_metamorphic.lidar.perturb import PAPER_NOISE_SIZES
-from pytest_metamorphic.lidar.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.lidar.tolerance import (
+from pytest_metamorphic.lidar.followups.perturb import PAPER_NOISE_SIZES
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.judging.tolerance import (
     EXACT,
     LEARNED,
     Tolerance,
@@ -140,7 +141,7 @@ def lidar_relations(
     judge (default: those wholly inside the ROI; ``"all"`` for every obstacle);
     ``tolerance`` how much the outputs of equivalent inputs may differ: ``"exact"``
     (geometric pipelines) or ``"learned"`` (neural networks, whose outputs jitter: see
-    :mod:`pytest_metamorphic.lidar.tolerance`).
+    :mod:`pytest_metamorphic.lidar.judging.tolerance`).
     """
     as_scope(scope)
     profile = as_tolerance(tolerance)

@@ -5,8 +5,8 @@ from __future__ import annotations
 from typing import Any
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
-from pytest_metamorphic.lidar.frame import Frame
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.frame import Frame
 
 # An empty frame: strategies built on it validate a relation's arguments when it is made.
 _PROBE = Frame(PointCloud.empty(), source="argument check")

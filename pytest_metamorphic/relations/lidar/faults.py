@@ -10,12 +10,12 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.faults import (
+from pytest_metamorphic.lidar.followups.faults import (
     PACKET_DEGREES,
     CoveredObstaclesKept,
 )
-from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.scope import ScopeLike
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.relations.lidar._common import _PROBE, _check_size, _frame
 from pytest_metamorphic.strategies._faults import dead_beams, lost_packets, quantized_ranges
 

@@ -9,16 +9,16 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.equivariance import (
+from pytest_metamorphic.lidar.followups.perturb import RotateAboutSensor
+from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX, ShiftAlongX
+from pytest_metamorphic.lidar.judging.equivariance import (
     MirroredObstacles,
     MovedObstacles,
     RotatedObstacles,
     ShiftedObstacles,
     moved_obstacles,
 )
-from pytest_metamorphic.lidar.perturb import RotateAboutSensor
-from pytest_metamorphic.lidar.scope import ScopeLike
-from pytest_metamorphic.lidar.symmetry import MirrorAcrossX, ShiftAlongX
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
 
 __all__ = [
@@ -92,6 +92,7 @@ def rotation_equivariance(
         exclusive=exclusive,
         scope=scope,
     )
+    turns: st.SearchStrategy[float]
     if quarter:
         turns = st.sampled_from((90, 180, 270))
     else:
@@ -125,7 +126,7 @@ def mirror_symmetry(
     """Reflecting the cloud and the ROI in the car's x axis reflects the obstacles.
 
     The follow-up is the source's mirror image
-    (:class:`~pytest_metamorphic.lidar.symmetry.MirrorAcrossX`): a left-hand-traffic scene
+    (:class:`~pytest_metamorphic.lidar.followups.symmetry.MirrorAcrossX`): a left-hand-traffic scene
     from a right-hand one. Precondition: a detector whose
     bird's-eye grids are anchored at the sensor (a reflection maps them onto themselves)
     and which prefers no side. Tolerances as for quarter turns (2 cm, 2 cm, 1 degree,
@@ -167,7 +168,7 @@ def translation_equivariance(
     name: str = "cloud and ROI shifted along x by whole cells => O shifted",
 ) -> MetamorphicRelation:
     """Shifting the cloud, the ROI and the boxes along x by whole grid cells shifts the
-    obstacles (:class:`~pytest_metamorphic.lidar.symmetry.ShiftAlongX`; 1 to ``max_cells``
+    obstacles (:class:`~pytest_metamorphic.lidar.followups.symmetry.ShiftAlongX`; 1 to ``max_cells``
     cells of ``cell_size`` metres either way, shrinking toward one cell forward).
 
     Optional, and not in :func:`lidar_relations`: no sensor sees a shifted scene (ranges

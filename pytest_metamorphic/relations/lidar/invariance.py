@@ -11,8 +11,8 @@ from numpy.typing import NDArray
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.matching import Matcher
-from pytest_metamorphic.lidar.perturb import DuplicatePoints
-from pytest_metamorphic.lidar.scope import judged_equal
+from pytest_metamorphic.lidar.followups.perturb import DuplicatePoints
+from pytest_metamorphic.lidar.judging.scope import judged_equal
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
 from pytest_metamorphic.strategies import duplicated_points, permuted_points
 
@@ -27,7 +27,8 @@ def permutation_invariance(
     Not scoped: reordering touches every point alike, so a detector must give exactly
     the same output everywhere (this and :func:`duplication_invariance` hold for
     whole-scene detectors as they do for ROI-first ones). ``matcher``: compare obstacles
-    by it, both ways, instead of exactly (:data:`~pytest_metamorphic.lidar.tolerance.LEARNED`).
+    by it, both ways, instead of exactly
+    (:data:`~pytest_metamorphic.lidar.judging.tolerance.LEARNED`).
     """
     return MetamorphicRelation(
         name,

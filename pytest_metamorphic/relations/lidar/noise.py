@@ -12,15 +12,15 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
-from pytest_metamorphic.lidar.frame import Frame
-from pytest_metamorphic.lidar.perturb import SEED_BITS, DropPoints, NoiseOutsideROI
-from pytest_metamorphic.lidar.scope import (
+from pytest_metamorphic.lidar.followups.perturb import SEED_BITS, DropPoints, NoiseOutsideROI
+from pytest_metamorphic.lidar.judging.scope import (
     ScopeLike,
     as_scope,
     judged_count,
     judged_equal,
     obstacles_kept,
 )
+from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
 from pytest_metamorphic.strategies import noise_outside_roi
 
@@ -115,7 +115,7 @@ def mr1_subset(
         that moves a little is kept but one that vanishes or changes class is not.
     scope : "roi", "all" or ObstacleScope
         Which source obstacles must be kept: by default those with at least half their
-        footprint inside the ROI (:mod:`pytest_metamorphic.lidar.scope`), so a detector
+        footprint inside the ROI (:mod:`pytest_metamorphic.lidar.judging.scope`), so a detector
         that reports the whole sweep is not blamed for noise changing obstacles off the
         road; those changes are counted as information. ``"all"`` judges every obstacle.
     """

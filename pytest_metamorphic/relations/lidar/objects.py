@@ -9,14 +9,14 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.matching import Matcher
-from pytest_metamorphic.lidar.edit import OthersKept, removal_candidates
-from pytest_metamorphic.lidar.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.insert import (
+from pytest_metamorphic.lidar.followups.edit import OthersKept, removal_candidates
+from pytest_metamorphic.lidar.followups.insert import (
     InsertedDetected,
     ObjectTemplate,
     object_templates,
 )
-from pytest_metamorphic.lidar.scope import ScopeLike
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.relations.lidar._common import _PROBE, _frame
 from pytest_metamorphic.strategies._edits import inserted_objects, removed_objects
 
@@ -35,7 +35,8 @@ def object_removal(
 
     The follow-up removes one car, pedestrian or cyclist
     (:func:`~pytest_metamorphic.strategies.removed_objects`: :func:`removal_candidates`,
-    shrinking toward the nearest) with :class:`~pytest_metamorphic.lidar.edit.RemoveObject`:
+    shrinking toward the nearest) with
+    :class:`~pytest_metamorphic.lidar.followups.edit.RemoveObject`:
     its returns go, and its beams run on to the ground behind it. Every judged source
     obstacle at least ``clearance`` metres from it keeps its own match (``matcher``,
     default same label and bird's-eye IoU >= 0.5), as :class:`OthersKept` checks.
@@ -43,7 +44,7 @@ def object_removal(
     Precondition: a detector whose decisions about one object do not depend on other
     objects farther away than ``clearance`` (default 5 m, beyond the reference pipeline's
     3.5 m ground window), judged outside the removed object's shadow (see
-    :class:`~pytest_metamorphic.lidar.edit.OthersKept`). Holds for the reference and the
+    :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept`). Holds for the reference and the
     whole-scene detector on all six KITTI sweeps and a rendered street (tests).
     """
     relation = OthersKept(clearance=clearance, matcher=matcher, scope=scope)
@@ -72,15 +73,16 @@ def object_insertion(
     The follow-up takes one of ``objects`` (:func:`object_templates`, e.g. from labelled
     KITTI sweeps or a rendered scene; default: the source frame's own cars, pedestrians
     and cyclists) and places it (:func:`~pytest_metamorphic.strategies.inserted_objects`)
-    with :class:`~pytest_metamorphic.lidar.insert.InsertObject`: on free ground judged by
-    ``scope`` and in clear view (:func:`~pytest_metamorphic.lidar.insert.free_placements`),
+    with :class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`: on free ground judged by
+    ``scope`` and in clear view
+    (:func:`~pytest_metamorphic.lidar.followups.insert.free_placements`),
     re-projected onto ``layout``'s beams, hiding what it stands in front of. Shrinking goes
     toward the first object and the smallest move from where it was seen; a violation
     reduces to the fewest inserted returns that still fail.
 
-    The check is :class:`~pytest_metamorphic.lidar.insert.InsertedDetected` (an inserted
+    The check is :class:`~pytest_metamorphic.lidar.followups.insert.InsertedDetected` (an inserted
     object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
-    obstacles, any label) and :class:`~pytest_metamorphic.lidar.edit.OthersKept` (judged
+    obstacles, any label) and :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` (judged
     source obstacles >= ``clearance`` metres from it and not behind it keep their match).
 
     Precondition: a detector that finds an unoccluded object of >= 30 returns on free

@@ -9,9 +9,9 @@ from typing import Any
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
-from pytest_metamorphic.lidar.faults import CoveredObstaclesKept
-from pytest_metamorphic.lidar.scope import ScopeLike
-from pytest_metamorphic.lidar.weather import WEATHER_KINDS, WeatherKind
+from pytest_metamorphic.lidar.followups.faults import CoveredObstaclesKept
+from pytest_metamorphic.lidar.followups.weather import WEATHER_KINDS, WeatherKind
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.relations.lidar._common import _PROBE, _frame
 from pytest_metamorphic.strategies._faults import weathered_frames
 
@@ -34,7 +34,7 @@ def adverse_weather(
 ) -> MetamorphicRelation:
     """Fog or rain loses no obstacle within the visibility that it leaves well covered.
 
-    The follow-up applies :class:`~pytest_metamorphic.lidar.weather.Weather` (Beer-Lambert
+    The follow-up applies :class:`~pytest_metamorphic.lidar.followups.weather.Weather` (Beer-Lambert
     attenuation from the visibility, returns below the sensor's detection threshold
     dropped, droplet echoes near the sensor) of one of ``kinds`` and ``visibilities``
     metres, with a drawn seed; shrinking goes toward the first kind, the first (mildest)

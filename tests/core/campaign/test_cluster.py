@@ -144,7 +144,7 @@ def test_the_synthetic_mr1_campaign_is_identical_on_the_cluster(client) -> None:
 
 
 def _mutant_system(name: str):
-    from pytest_metamorphic.lidar.perception.mutants import mutant
+    from pytest_metamorphic.lidar.systems.perception.mutants import mutant
 
     faulty = mutant(name)
     return lambda frame: faulty(frame.cloud, frame.roi)
@@ -153,8 +153,8 @@ def _mutant_system(name: str):
 def test_recorded_frames_travel_by_path_and_give_the_same_result(client) -> None:
     from conftest import shared_data_path
     from pytest_metamorphic.lidar.campaign import mr1_campaign
-    from pytest_metamorphic.lidar.evaluation import kitti_label_region
     from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+    from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 
     catalog = FrameCatalog(
         shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()

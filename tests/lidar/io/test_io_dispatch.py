@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import detect_format, read_cloud, write_cloud
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 CLOUD = PointCloud(
     np.arange(20, dtype=np.float32).reshape(5, 4),

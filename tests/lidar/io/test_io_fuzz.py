@@ -23,7 +23,6 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import DataError
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import (
     index_bag,
     read_apollo_clusters,
@@ -37,6 +36,7 @@ from pytest_metamorphic.lidar.io import (
     write_bag,
     write_pcd,
 )
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 FUZZ = settings(
     max_examples=40,

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import _lzf, read_pcd, read_pcd_header, write_pcd
 from pytest_metamorphic.lidar.io.pcd import header as pcd
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 VLP16 = "nebula_velodyne/vlp16/1673400472138016708.pcd"
 VLP32 = "nebula_velodyne/vlp32/1713492677464078412.pcd"

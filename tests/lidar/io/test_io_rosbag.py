@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import bag_topics, index_bag, iter_bag, read_bag, write_bag
 from pytest_metamorphic.lidar.io.rosbag import cloud_to_pointcloud2, pointcloud2_to_cloud
 from pytest_metamorphic.lidar.io.rosbag import reader as rosbag
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 OUSTER = "pointcloudset_ouster/test_converted.bag"
 OUSTER_TOPIC = "/os1_cloud_node/points"

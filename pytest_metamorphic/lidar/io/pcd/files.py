@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.io import _lzf
 from pytest_metamorphic.lidar.io._common import (
     ZerosPolicy,
@@ -35,6 +34,7 @@ from pytest_metamorphic.lidar.io.pcd.payload import (
     _read_bytes,
     _read_compressed,
 )
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 
 __all__ = ["read_pcd", "read_pcd_header", "write_pcd"]
 
@@ -166,7 +166,7 @@ def write_pcd(
             handle.write(records.tobytes())
         elif data == "binary_compressed":
             raw = b"".join(
-                np.ascontiguousarray(records[key]).tobytes() for key in records.dtype.names
+                np.ascontiguousarray(records[key]).tobytes() for key in records.dtype.names or ()
             )
             packed = _lzf.compress(raw)
             handle.write(np.array([len(packed), len(raw)], "<u4").tobytes())

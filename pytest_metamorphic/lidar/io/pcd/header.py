@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError
-from pytest_metamorphic.lidar.cloud import PointCloud
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 __all__ = ["PcdHeader"]
 
@@ -240,7 +240,7 @@ def _header_from_values(
         raise DataError(
             f"POINTS {values['POINTS'][0]} differs from WIDTH x HEIGHT = {points}", path=path
         )
-    viewpoint = _DEFAULT_VIEWPOINT
+    viewpoint: tuple[float, ...] = _DEFAULT_VIEWPOINT
     if "VIEWPOINT" in values:
         viewpoint = _floats(values["VIEWPOINT"], "VIEWPOINT", path)
         if len(viewpoint) != 7 or not all(map(math.isfinite, viewpoint)):
@@ -326,7 +326,7 @@ def _floats(items: list[str], keyword: str, path: Path) -> tuple[float, ...]:
 
 def _header_text(cloud: PointCloud, dtype: np.dtype, data: str) -> str:
     names, sizes, types, counts = [], [], [], []
-    for key in dtype.names:
+    for key in dtype.names or ():
         base, shape = dtype[key].base, dtype[key].shape
         names.append(key)
         sizes.append(str(base.itemsize))

@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io import _lzf
 from pytest_metamorphic.lidar.io._common import (
     cloud_from_columns,
     cloud_from_records,
 )
 from pytest_metamorphic.lidar.io.pcd.header import PcdHeader
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 
 def _need(available: int, needed: int, what: str, path: Path) -> None:
@@ -48,7 +48,7 @@ def _read_into(fd: int, buffer: np.ndarray) -> int:
     Straight into the array: ``np.fromfile`` goes through C stdio and is ~20% slower on
     a 1 MB payload.
     """
-    view = memoryview(buffer)
+    view = buffer.data  # a memoryview of the array's bytes
     total = 0
     while total < len(view):
         count = _read_some(fd, view[total:])
@@ -153,7 +153,7 @@ def _read_ascii(
 
 def _ascii_body(records: np.ndarray) -> str:
     columns = []
-    for key in records.dtype.names:
+    for key in records.dtype.names or ():
         values = records[key].reshape(len(records), int(np.prod(records.dtype[key].shape)))
         kind, size = values.dtype.kind, values.dtype.itemsize
         # 9 / 17 significant digits read back to the same float32 / float64.

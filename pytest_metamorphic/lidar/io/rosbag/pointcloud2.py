@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.io._common import (
     ZerosPolicy,
     check_policies,
@@ -17,6 +17,7 @@ from pytest_metamorphic.lidar.io._common import (
     wrap_errors,
 )
 from pytest_metamorphic.lidar.io.rosbag.typestore import POINTCLOUD2, _typestore
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 
 __all__ = ["cloud_to_pointcloud2", "pointcloud2_to_cloud"]
 
@@ -143,8 +144,9 @@ def cloud_to_pointcloud2(cloud: PointCloud, *, ros1: bool = False) -> Any:
     store = _typestore(ros1)
     types = store.types
     fields = []
-    for key in records.dtype.names:
-        base, offset = records.dtype.fields[key][0], records.dtype.fields[key][1]
+    layout: Mapping[str, tuple[Any, ...]] = records.dtype.fields or {}
+    for key in records.dtype.names or ():
+        base, offset = layout[key][0], layout[key][1]
         shape = base.shape
         fields.append(
             types["sensor_msgs/msg/PointField"](

@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.io._common import (
     ZerosPolicy,
     check_policies,
@@ -24,6 +23,7 @@ from pytest_metamorphic.lidar.io._common import (
 )
 from pytest_metamorphic.lidar.io.rosbag.pointcloud2 import pointcloud2_to_cloud
 from pytest_metamorphic.lidar.io.rosbag.typestore import POINTCLOUD2, _typestore
+from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 
 __all__ = ["BagIndex", "bag_topics", "index_bag", "iter_bag", "read_bag"]
 
@@ -50,7 +50,7 @@ class _CappedReader(io.BufferedReader):
 class _CappedPath(type(Path())):  # type: ignore[misc]
     """The path handed to rosbags: opened for binary reading, it gives a _CappedReader."""
 
-    def open(self, mode: str = "r", *args: Any, **kwargs: Any) -> Any:  # type: ignore[override]
+    def open(self, mode: str = "r", *args: Any, **kwargs: Any) -> Any:
         if mode == "rb" and not args and not kwargs:
             return _CappedReader(io.FileIO(self, "rb"))
         return super().open(mode, *args, **kwargs)

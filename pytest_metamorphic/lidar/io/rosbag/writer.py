@@ -8,12 +8,12 @@ from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.cloud import PointCloud
 from pytest_metamorphic.lidar.io._common import (
     replacing,
 )
 from pytest_metamorphic.lidar.io.rosbag.pointcloud2 import cloud_to_pointcloud2
 from pytest_metamorphic.lidar.io.rosbag.typestore import POINTCLOUD2, BagStorage, _typestore
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 __all__ = ["write_bag"]
 
@@ -98,10 +98,11 @@ def write_bag(
 
 def _writer(path: Path, storage: str) -> Any:
     if storage == "rosbag1":
-        from rosbags.rosbag1 import Writer
+        from rosbags.rosbag1 import Writer as Writer1
 
-        return Writer(path)
-    from rosbags.rosbag2 import StoragePlugin, Writer
+        return Writer1(path)
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
 
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-    return Writer(path, version=8, storage_plugin=plugin)
+    return Writer2(path, version=8, storage_plugin=plugin)

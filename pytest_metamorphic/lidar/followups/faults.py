@@ -1,0 +1,400 @@
+"""Sensor faults of a spinning LiDAR as follow-up transforms: beams missing, a packet lost,
+a coarser range resolution.
+
+A real sensor loses whole lasers (a dead channel, a dirty window segment) and whole
+packets (an Ethernet drop takes one azimuth block of every laser). Both need to know
+which laser (ring) fired each point: recorded PCD/bag clouds usually carry a ``ring``
+field; KITTI's ``.bin`` sweeps do not, but store points laser by laser in firing order,
+from which :func:`derive_rings` recovers the ring exactly; rendered scenes carry it.
+
+:class:`DropRings` is :class:`~pytest_metamorphic.core.perturbation.Reducible` over the
+missing rings: a violation reduces to the fewest beams whose loss still fails.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, share_inside
+
+__all__ = [
+    "PACKET_DEGREES",
+    "CoveredObstaclesKept",
+    "DropAzimuthBlock",
+    "DropRings",
+    "QuantizeRange",
+    "RingMethod",
+    "derive_rings",
+]
+
+RingMethod = Literal["auto", "field", "scan_order", "elevation"]
+PACKET_DEGREES = 1.04
+"""Azimuth covered by one HDL-64E data packet at 10 Hz (6 firings of 0.1728 degrees)."""
+_METHODS = ("auto", "field", "scan_order", "elevation")
+
+
+def _azimuth(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
+    """Azimuth in [0, 2π), counter-clockwise from +x."""
+    return np.mod(np.arctan2(xyz[:, 1].astype(np.float64), xyz[:, 0]), 2 * math.pi)
+
+
+def _elevation(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
+    planar = np.hypot(xyz[:, 0].astype(np.float64), xyz[:, 1])
+    return np.arctan2(xyz[:, 2].astype(np.float64), planar)
+
+
+def _rings_from_scan_order(xyz: NDArray[np.float32], lasers: int) -> NDArray[np.uint8] | None:
+    """Rings of a sweep stored laser by laser, or None when it is not stored that way.
+
+    Within one laser's revolution the azimuth in [0, 2π) grows; the next laser starts
+    over, so the azimuth drops by more than π. Exactly ``lasers`` runs whose median
+    elevations are ordered mean the layout is recognised; rings are numbered from the
+    lowest beam (0) up, as ROS drivers publish them, whichever end the file starts at.
+    """
+    if len(xyz) < 2 * lasers:
+        return None
+    starts = np.flatnonzero(np.diff(_azimuth(xyz)) < -math.pi) + 1
+    if len(starts) != lasers - 1:
+        return None
+    bounds = np.concatenate([[0], starts, [len(xyz)]])
+    elevation = _elevation(xyz)
+    medians = np.array([np.median(elevation[a:b]) for a, b in itertools.pairwise(bounds)])
+    steps = np.diff(medians)
+    if (steps < 0).all():
+        rank = np.arange(lasers)[::-1]  # stored top beam first (KITTI)
+    elif (steps > 0).all():
+        rank = np.arange(lasers)
+    else:
+        return None
+    return np.repeat(rank, np.diff(bounds)).astype(np.uint8)
+
+
+def _rings_from_elevation(xyz: NDArray[np.float32], layout: BeamLayout) -> NDArray[np.uint8]:
+    """The nearest beam of ``layout`` by elevation (exact for scans rendered with it)."""
+    order = np.argsort(layout.elevations, kind="stable")
+    sorted_elevations = layout.elevations[order]
+    elevation = _elevation(xyz)
+    right = np.clip(np.searchsorted(sorted_elevations, elevation), 1, len(order) - 1)
+    left = right - 1
+    nearer_left = (elevation - sorted_elevations[left]) < (sorted_elevations[right] - elevation)
+    return np.where(nearer_left, left, right).astype(np.uint8)
+
+
+def derive_rings(
+    cloud: PointCloud, *, layout: BeamLayout = HDL64E, method: RingMethod = "auto"
+) -> NDArray[np.uint8]:
+    """The ring (laser, 0 = lowest beam) of every point of ``cloud``.
+
+    Parameters
+    ----------
+    cloud : PointCloud
+    layout : BeamLayout
+        The sensor (default the HDL-64E): its number of lasers, and for ``"elevation"``
+        their elevations.
+    method : {"auto", "field", "scan_order", "elevation"}
+        ``"field"``: the cloud's ``ring`` field. ``"scan_order"``: recovered from the
+        storage order of a sweep stored laser by laser (KITTI's ``.bin``; exact when it
+        applies). ``"elevation"``: the nearest beam of ``layout`` by elevation angle
+        (exact for scenes rendered with ``layout``; a real unit's own calibration differs:
+        on a shuffled KITTI sweep it is off by 2 rings at the median, 10 at most).
+        ``"auto"``: the first that applies, in that order.
+
+    Returns
+    -------
+    rings : (n,) uint8
+
+    Raises
+    ------
+    InvalidArgument
+        The method does not apply to this cloud (no ring field; not stored laser by laser).
+    """
+    if not isinstance(cloud, PointCloud):
+        raise InvalidArgument(f"cloud must be a PointCloud, got {type(cloud).__name__}")
+    if method not in _METHODS:
+        raise InvalidArgument(f"method={method!r} must be one of {list(_METHODS)}")
+    if not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
+    if method in ("auto", "field") and "ring" in cloud.fields:
+        return np.asarray(cloud.fields["ring"]).astype(np.uint8)
+    if method == "field":
+        raise InvalidArgument("the cloud has no 'ring' field")
+    if method in ("auto", "scan_order"):
+        rings = _rings_from_scan_order(cloud.xyz, layout.lasers)
+        if rings is not None:
+            return rings
+        if method == "scan_order":
+            raise InvalidArgument(
+                "the cloud is not stored laser by laser in firing order "
+                f"(expected {layout.lasers} revolutions of rising azimuth); use "
+                "method='elevation' or a cloud with a ring field"
+            )
+    return _rings_from_elevation(cloud.xyz, layout)
+
+
+def _ring_list(rings: Any, lasers: int) -> tuple[int, ...]:
+    try:
+        values = [int(r) for r in rings]
+    except (TypeError, ValueError):
+        raise InvalidArgument(f"rings={rings!r} must be a sequence of ring numbers") from None
+    if any(isinstance(r, bool) for r in rings) or not all(0 <= r < lasers for r in values):
+        raise InvalidArgument(f"rings={rings!r} must be ring numbers in [0, {lasers - 1}]")
+    return tuple(sorted(set(values)))
+
+
+@dataclass(frozen=True)
+class DropRings:
+    """Remove every return of the lasers ``rings`` (dead channels).
+
+    Parameters
+    ----------
+    rings : sequence of int
+        Ring numbers (0 = lowest beam), repeats ignored.
+    layout : BeamLayout
+        The sensor, for :func:`derive_rings` when the cloud has no ring field.
+    method : str
+        How rings are found (see :func:`derive_rings`).
+    """
+
+    rings: tuple[int, ...]
+    layout: BeamLayout = HDL64E
+    method: RingMethod = "auto"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.layout, BeamLayout):
+            raise InvalidArgument(f"layout={self.layout!r} must be a BeamLayout")
+        object.__setattr__(self, "rings", _ring_list(self.rings, self.layout.lasers))
+
+    def __len__(self) -> int:
+        return len(self.rings)
+
+    def restrict(self, indices: Sequence[int]) -> DropRings:
+        return DropRings(tuple(self.rings[i] for i in indices), self.layout, self.method)
+
+    def kept(self, frame: Frame) -> NDArray[np.bool_]:
+        """Which points of ``frame`` survive."""
+        rings = derive_rings(frame.cloud, layout=self.layout, method=self.method)
+        return ~np.isin(rings, self.rings)
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        return frame.with_cloud(frame.cloud[self.kept(frame)])
+
+    def params(self) -> dict[str, Any]:
+        return {"missing_rings": list(self.rings), "drop_rings": self}
+
+    def describe_elements(self, limit: int) -> list[str]:
+        return [f"ring {ring}" for ring in self.rings[:limit]]
+
+    def __repr__(self) -> str:
+        return f"DropRings({list(self.rings)})"
+
+
+@dataclass(frozen=True)
+class DropAzimuthBlock:
+    """Remove every return whose azimuth lies in ``[start, start + width)`` (a lost packet:
+    one block of firings of every laser).
+
+    Parameters
+    ----------
+    start : float
+        Radians, counter-clockwise from +x (the car's forward axis).
+    width : float
+        Radians, in (0, 2π). An HDL-64E packet holds 6 firings of all lasers at 10 Hz,
+        about 1.04 degrees.
+    """
+
+    start: float
+    width: float
+
+    def __post_init__(self) -> None:
+        for name in ("start", "width"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+                raise InvalidArgument(f"{name}={value!r} must be a number (radians)")
+            if not math.isfinite(value):
+                raise InvalidArgument(f"{name}={value!r} must be finite")
+        if not 0 < self.width < 2 * math.pi:
+            raise InvalidArgument(f"width={self.width!r} must be in (0, 2π) radians")
+        object.__setattr__(self, "start", float(self.start) % (2 * math.pi))
+        object.__setattr__(self, "width", float(self.width))
+
+    def kept(self, frame: Frame) -> NDArray[np.bool_]:
+        offset = np.mod(_azimuth(frame.cloud.xyz) - self.start, 2 * math.pi)
+        return offset >= self.width
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        return frame.with_cloud(frame.cloud[self.kept(frame)])
+
+    def params(self) -> dict[str, Any]:
+        return {
+            "lost_block_start_deg": round(math.degrees(self.start), 3),
+            "lost_block_width_deg": round(math.degrees(self.width), 3),
+        }
+
+
+@dataclass(frozen=True)
+class QuantizeRange:
+    """Round every return's range to a multiple of ``step`` metres, along its beam (a
+    coarser range resolution: a cheaper sensor, or a driver packing ranges into fewer
+    bits; the HDL-64E reports 2 mm steps with 2 cm noise).
+
+    Parameters
+    ----------
+    step : float
+        Metres, in (0, 1].
+    """
+
+    step: float
+
+    def __post_init__(self) -> None:
+        value = self.step
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+            raise InvalidArgument(f"step={value!r} must be a number of metres in (0, 1]")
+        if not (math.isfinite(value) and 0 < value <= 1):
+            raise InvalidArgument(f"step={value!r} must be a number of metres in (0, 1]")
+        object.__setattr__(self, "step", float(value))
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        points = frame.cloud.points.copy()
+        xyz = points[:, :3].astype(np.float64)
+        ranges = np.linalg.norm(xyz, axis=1)
+        rounded = np.maximum(np.round(ranges / self.step), 1.0) * self.step
+        scale = np.divide(rounded, ranges, out=np.ones_like(ranges), where=ranges > 0)
+        points[:, :3] = (xyz * scale[:, None]).astype(np.float32)
+        return frame.with_cloud(frame.cloud.with_points(points))
+
+    def params(self) -> dict[str, Any]:
+        return {"range_step_m": self.step, "quantize_range": self}
+
+
+# -- what a fault must leave intact ---------------------------------------------------------
+
+
+def _frames(context: CheckContext) -> tuple[Frame, Frame]:
+    frames = (context.source_input, context.followup_input)
+    if not all(isinstance(frame, Frame) for frame in frames):
+        raise InvalidArgument("the coverage check needs Frame inputs on both sides")
+    return frames
+
+
+def _count(value: Any, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InvalidArgument(f"{name}={value!r} must be a positive int")
+    return value
+
+
+def _fraction(value: Any, name: str, *, upper: float = 1.0) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidArgument(f"{name}={value!r} must be a number in [0, {upper:g}]")
+    if not (math.isfinite(value) and 0.0 <= value <= upper):
+        raise InvalidArgument(f"{name}={value!r} must be a number in [0, {upper:g}]")
+    return float(value)
+
+
+class CoveredObstaclesKept(Relation):
+    """Every judged source obstacle that the fault leaves *well covered* is still detected.
+
+    Well covered: at least ``min_points`` of the follow-up cloud's points, and at least
+    ``min_share`` of the points it had, lie in the source obstacle's box, and they still
+    span at least ``min_height_share`` of its points' vertical extent (a fault that takes
+    an obstacle's lowest rows takes the ground next to it too, and a detector may then
+    fairly read what is left as ground: seen on KITTI, a car at 38 m losing two rings).
+    Still detected: at least ``min_detected`` of those remaining points lie in follow-up
+    obstacles (boxes grown by 10 cm; any label and any number of them: fewer points may
+    turn a car into an unknown object, and a lost packet may cut one in two). Obstacles
+    labelled ``unknown`` and those the ``scope`` does not judge are skipped, and with
+    ``range_param`` those whose centre lies farther from the sensor than the follow-up's
+    ``params[range_param]`` metres (e.g. the visibility in fog).
+    """
+
+    def __init__(
+        self,
+        *,
+        min_points: int = 30,
+        min_share: float = 0.5,
+        min_height_share: float = 0.8,
+        min_detected: float = 0.5,
+        scope: ScopeLike = "roi",
+        range_param: str | None = None,
+    ) -> None:
+        if range_param is not None and not isinstance(range_param, str):
+            raise InvalidArgument(f"range_param={range_param!r} must be a params key or None")
+        self.range_param = range_param
+        self.min_points = _count(min_points, "min_points")
+        self.min_share = _fraction(min_share, "min_share")
+        self.min_height_share = _fraction(min_height_share, "min_height_share")
+        self.min_detected = _fraction(min_detected, "min_detected")
+        self.scope: ObstacleScope = as_scope(scope)
+        self.name = (
+            f"well-covered obstacles kept (>= {min_points} points and >= {min_share:.0%} "
+            f"left over >= {min_height_share:.0%} of the height, >= {min_detected:.0%} of "
+            f"them still in obstacles; {self.scope.describe()})"
+        )
+
+    def covered(
+        self, boxes: Sequence[Box], source: Frame, followup: Frame, reach: float = math.inf
+    ) -> list[tuple[int, int, int]]:
+        """``(index, points before, points after)`` of the judged boxes left well covered
+        (within ``reach`` metres of the sensor)."""
+        judged = self.scope.judged(list(boxes), source)
+        chosen = []
+        for index, box in enumerate(boxes):
+            if not judged[index] or box.label == "unknown":
+                continue
+            if math.hypot(box.center[0], box.center[1]) > reach:
+                continue
+            z_before = source.cloud.xyz[box.contains(source.cloud.xyz), 2]
+            z_after = followup.cloud.xyz[box.contains(followup.cloud.xyz), 2]
+            before, after = len(z_before), len(z_after)
+            if after < self.min_points or after < self.min_share * before:
+                continue
+            span = float(z_before.max() - z_before.min())
+            if float(z_after.max() - z_after.min()) >= self.min_height_share * span:
+                chosen.append((index, before, after))
+        return chosen
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        source, followup = _frames(context)
+        boxes = as_boxes(source_output, "source")
+        found = as_boxes(followup_output, "follow-up")
+        reach = math.inf
+        if self.range_param is not None:
+            reach = float(context.params.get(self.range_param, math.inf))
+        covered = self.covered(boxes, source, followup, reach)
+        missing = []
+        for index, before, after in covered:
+            remaining = followup.cloud.xyz[boxes[index].contains(followup.cloud.xyz)]
+            share = share_inside(remaining, found)
+            if share < self.min_detected:
+                missing.append((index, before, after, share))
+        details = {
+            "covered": len(covered),
+            "missing": [boxes[i].describe() for i, *_ in missing],
+            "scope": self.scope.describe(),
+        }
+        if not missing:
+            return Verdict(True, self.name, details=details)
+        lines = [
+            f"{boxes[i].describe()} lost although {after} of its {before} points are left "
+            f"({share:.0%} of them in follow-up obstacles)"
+            for i, before, after, share in missing
+        ]
+        return Verdict(False, self.name, "; ".join(lines[:10]), details)

@@ -1,0 +1,48 @@
+"""Scene edits: a real object placed into another sweep, as that sweep's sensor would see it.
+
+semLidarFuzz's *add* and MultiTest's insertion, without a renderer of our own models:
+
+1. :meth:`ObjectTemplate.from_frame` takes a labelled (or detected) object's returns from
+   a real or rendered sweep and meshes them the way the sensor saw them: a Delaunay
+   triangulation in (azimuth, elevation), neighbouring returns joined, holes (more than
+   three beam spacings, or 1 m in depth) left open. The mesh is kept in the object's own
+   coordinates, standing on its local ground, with the *view*: its heading relative to the
+   line of sight.
+2. :func:`free_placements` lists where it may go in another frame: on free ground (no
+   return above the local ground in its footprint grown by 0.5 m), judged by the scope
+   (inside the ROI), at the range it was seen from or up to 20 % nearer / 50 % farther,
+   turned about the sensor so that the sensor sees the same face (the view is kept).
+3. :meth:`InsertObject.onto` casts the target sensor's beams (its
+   :class:`~pytest_metamorphic.lidar.model.hdl64.BeamLayout`) at the placed mesh: one return
+   per beam that hits it, at the hit's range and the surrounding returns' intensity, with
+   the beam's ring; returns of the target that the object hides (their ray crosses the
+   mesh first) go; beams whose ray meets a target return in front of the object first are
+   not added. Density therefore follows the new range and the target's beams, not the
+   source's.
+
+:class:`InsertObject` is :class:`~pytest_metamorphic.core.perturbation.Reducible` over its
+returns (each with the target returns it hides): a violation reduces to the fewest
+inserted returns that still fail. :class:`InsertedDetected` checks that the inserted
+object is found, :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` that nothing else is
+lost.
+"""
+
+from pytest_metamorphic.lidar.followups.insert.check import InsertedDetected
+from pytest_metamorphic.lidar.followups.insert.insertion import INSERTED_INSTANCE, InsertObject
+from pytest_metamorphic.lidar.followups.insert.placement import RANGE_FACTORS, free_placements
+from pytest_metamorphic.lidar.followups.insert.template import (
+    ObjectTemplate,
+    Placement,
+    object_templates,
+)
+
+__all__ = [
+    "INSERTED_INSTANCE",
+    "RANGE_FACTORS",
+    "InsertObject",
+    "InsertedDetected",
+    "ObjectTemplate",
+    "Placement",
+    "free_placements",
+    "object_templates",
+]

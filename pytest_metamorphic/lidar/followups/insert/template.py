@@ -1,0 +1,205 @@
+"""What is inserted: an object's returns from a real or rendered sweep, meshed as the
+sensor saw them, and where it stands."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import Delaunay, QhullError
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.followups.edit import (
+    RemoveObject,
+    removal_candidates,
+)
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box, Label
+from pytest_metamorphic.lidar.synthetic.meshes import SceneMesh
+
+__all__ = ["ObjectTemplate", "Placement", "object_templates"]
+
+# Normalising spacings for the mesh (HDL-64E: firings 0.17 degrees apart, lasers 0.3-0.6).
+_AZIMUTH_SPACING = math.radians(0.17)
+_ELEVATION_SPACING = math.radians(0.45)
+_MAX_GAP = 3.0  # triangles wider than this many spacings span a hole
+_MAX_DEPTH_STEP = 1.0  # metres: a longer triangle edge joins two surfaces
+_MIN_RETURNS = 10
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectTemplate:
+    """An object's surface as a LiDAR saw it, ready to be placed into other sweeps.
+
+    Attributes
+    ----------
+    label : str
+    size : (3,) float
+        Length, width, height of its box in metres.
+    vertices : (k, 3) float64
+        Its returns in object coordinates: x along the heading, y to the left, z up from
+        the local ground under it.
+    faces : (m, 3) int64
+        Triangles joining neighbouring returns.
+    intensity : (k,) float32
+        Each return's intensity.
+    view : float
+        Heading minus bearing (radians): which face the sensor saw.
+    range, bearing : float
+        Metres and radians from the sensor to the box centre when it was seen.
+    source : str
+        Where it was taken from, for messages.
+    """
+
+    label: Label
+    size: tuple[float, float, float]
+    vertices: NDArray[np.float64] = field(repr=False)
+    faces: NDArray[np.int64] = field(repr=False)
+    intensity: NDArray[np.float32] = field(repr=False)
+    view: float
+    range: float
+    bearing: float
+    source: str = ""
+
+    @classmethod
+    def from_frame(cls, frame: Frame, box: Box, *, margin: float = 0.15) -> ObjectTemplate:
+        """The returns of the object in ``box`` (grown by ``margin``, above the local ground)
+        of ``frame``, meshed. Raises :class:`InvalidArgument` when fewer than 10 returns
+        lie on it or they do not form a surface."""
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        removal = RemoveObject(box, margin)
+        ground_z, _ = removal.ground_height(frame)
+        points = frame.cloud.points[removal.removed(frame, ground_z)].astype(np.float64)
+        where = f"{box.describe()} in {frame!r}"
+        if len(points) < _MIN_RETURNS:
+            raise InvalidArgument(
+                f"{where} has {len(points)} returns; a template needs >= {_MIN_RETURNS}"
+            )
+        bearing = math.atan2(box.center[1], box.center[0])
+        faces = _surface(points[:, :3], bearing)
+        if len(faces) == 0:
+            raise InvalidArgument(f"the returns of {where} do not form a surface")
+        c, s = math.cos(box.yaw), math.sin(box.yaw)
+        offset = points[:, :3] - np.array([box.center[0], box.center[1], ground_z])
+        local = np.column_stack(
+            [
+                c * offset[:, 0] + s * offset[:, 1],
+                -s * offset[:, 0] + c * offset[:, 1],
+                offset[:, 2],
+            ]
+        )
+        return cls(
+            label=box.label,
+            size=box.size,
+            vertices=local,
+            faces=faces,
+            intensity=points[:, 3].astype(np.float32),
+            view=math.remainder(box.yaw - bearing, 2 * math.pi),
+            range=math.hypot(box.center[0], box.center[1]),
+            bearing=bearing,
+            source=f"{frame.source or '<memory>'}#{frame.index}",
+        )
+
+    def box_at(self, placement: Placement) -> Box:
+        """The template's box standing at ``placement``, turned so the same face is seen."""
+        x, y = (
+            placement.range * math.cos(placement.bearing),
+            placement.range * math.sin(placement.bearing),
+        )
+        yaw = math.remainder(placement.bearing + self.view, 2 * math.pi)
+        centre = (x, y, placement.ground_z + self.size[2] / 2)
+        return Box(centre, self.size, yaw, self.label)
+
+    def mesh_at(self, placement: Placement) -> SceneMesh:
+        """The template's triangles at ``placement`` (sensor frame)."""
+        box = self.box_at(placement)
+        c, s = math.cos(box.yaw), math.sin(box.yaw)
+        v = self.vertices
+        world = np.column_stack(
+            [
+                box.center[0] + c * v[:, 0] - s * v[:, 1],
+                box.center[1] + s * v[:, 0] + c * v[:, 1],
+                placement.ground_z + v[:, 2],
+            ]
+        )
+        m = len(self.faces)
+        return SceneMesh(world, self.faces, np.zeros(m, np.int32), np.zeros(m), ((0, m),))
+
+    def describe(self) -> str:
+        return (
+            f"{self.label} seen at {self.range:.1f} m ({len(self.vertices)} returns, {self.source})"
+        )
+
+
+def _surface(xyz: NDArray[np.float64], bearing: float) -> NDArray[np.int64]:
+    """Triangles joining returns that neighbour each other in the sensor's view (azimuth
+    taken relative to ``bearing``, so an object behind the sensor does not straddle ±π)."""
+    azimuth = _relative_bearing(xyz, bearing)
+    planar = np.hypot(xyz[:, 0], xyz[:, 1])
+    view = np.column_stack(
+        [azimuth / _AZIMUTH_SPACING, np.arctan2(xyz[:, 2], planar) / _ELEVATION_SPACING]
+    )
+    try:
+        faces = Delaunay(view).simplices.astype(np.int64)
+    except (QhullError, ValueError):
+        return np.empty((0, 3), dtype=np.int64)
+    edges = [(0, 1), (1, 2), (2, 0)]
+    wide = np.zeros(len(faces), dtype=bool)
+    for a, b in edges:
+        wide |= np.linalg.norm(view[faces[:, a]] - view[faces[:, b]], axis=1) > _MAX_GAP
+        wide |= np.linalg.norm(xyz[faces[:, a]] - xyz[faces[:, b]], axis=1) > _MAX_DEPTH_STEP
+    return faces[~wide]
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a template goes: ``range`` metres from the sensor at ``bearing`` radians, its
+    underside at ``ground_z``."""
+
+    bearing: float
+    range: float
+    ground_z: float
+
+
+def object_templates(
+    frames: Frame | Iterable[Frame], *, min_returns: int = 30, scope: ScopeLike = "all"
+) -> list[ObjectTemplate]:
+    """Objects to insert, taken from ``frames``: every car, pedestrian and cyclist
+    (labelled boxes when a frame has them, else the reference pipeline's detections; see
+    :func:`removal_candidates`) with at least ``min_returns`` returns, nearest first
+    within each frame. ``scope`` picks which of them are taken (default: all)."""
+    if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
+        raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
+    chosen = [frames] if isinstance(frames, Frame) else list(frames)
+    templates = []
+    for index, frame in enumerate(chosen):
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frames[{index}] is {frame!r}, not a Frame")
+        for box in removal_candidates(frame, scope=scope):
+            try:
+                template = ObjectTemplate.from_frame(frame, box)
+            except InvalidArgument:  # too few returns, or no surface (a thin pole)
+                continue
+            if len(template.vertices) >= min_returns:
+                templates.append(template)
+    return templates
+
+
+def _bearing_window(vertices: NDArray[np.float64], bearing: float) -> tuple[float, float]:
+    """Bearings the mesh covers, relative to ``bearing`` (radians)."""
+    offset = _relative_bearing(vertices, bearing)
+    return float(offset.min()), float(offset.max())
+
+
+def _relative_bearing(xyz: NDArray[np.float64], bearing: float) -> NDArray[np.float64]:
+    """Bearing of each point minus ``bearing``, in [-π, π)."""
+    return _wrapped(np.arctan2(xyz[:, 1], xyz[:, 0]) - bearing)
+
+
+def _wrapped(angle: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.remainder(angle + math.pi, 2 * math.pi) - math.pi

@@ -1,0 +1,290 @@
+"""Checks that obstacles move with the scene: turned, mirrored or shifted.
+
+A rigid change of the cloud and the ROI (:mod:`pytest_metamorphic.lidar.followups.symmetry`,
+:class:`~pytest_metamorphic.lidar.followups.perturb.RotateAboutSensor`) should move a detector's
+boxes the same way. :class:`MovedObstacles` compares the source's boxes, moved, with the
+follow-up's, one to one within tolerances; the subclasses say how a box moves. The
+relations (:func:`~pytest_metamorphic.relations.lidar.rotation_equivariance`,
+``mirror_symmetry``, ``translation_equivariance``) and the symmetry campaigns
+(:func:`~pytest_metamorphic.lidar.campaign.symmetry_campaign`) share them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.matching import one_to_one
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes
+
+__all__ = [
+    "TURN_TOLERANCES",
+    "MirroredObstacles",
+    "MovedObstacles",
+    "RotatedObstacles",
+    "ShiftedObstacles",
+    "moved_obstacles",
+]
+
+#: Default (centre m, size m, yaw degrees, min points, ROI-edge margin m) of rotation
+#: checks: quarter turns map a sensor-anchored grid onto itself (tight, labels compared);
+#: other angles cut objects differently (see ``rotation_equivariance``).
+TURN_TOLERANCES: dict[str, tuple[float, float, float, int, float]] = {
+    "quarter_turns": (0.02, 0.02, 1.0, 0, 0.5),
+    "any": (0.8, 0.8, 20.0, 30, 1.0),
+}
+
+
+class MovedObstacles(Relation):
+    """``O'`` is ``O`` moved as the scene was (turned, mirrored), within tolerances.
+
+    Compared are the *clear* obstacles of either side: labelled car, pedestrian or
+    cyclist, with at least ``min_points`` points, and whose footprint circle stays more
+    than ``boundary_margin`` metres from the ROI's edges (the moved ROI is rasterised
+    afresh, as Apollo does every frame, so cells along its edges differ). Each clear
+    source obstacle, moved, needs its own follow-up obstacle (of the same label when
+    ``same_label``) with the centre within ``center_tolerance``, length and width each
+    within ``size_tolerance`` and, for elongated boxes (length - width > 0.3 m), the heading within
+    ``yaw_tolerance`` degrees modulo 180 (a box's front is not defined); and each clear
+    follow-up obstacle needs its own such source obstacle (with ``exclusive=False``, any
+    such obstacle: pieces of one object may share it). With a ``scope``
+    (:mod:`pytest_metamorphic.lidar.judging.scope`, default the ROI) only obstacles it judges are
+    clear; others are counted in ``unjudged`` details, as information.
+    """
+
+    def __init__(
+        self,
+        *,
+        center_tolerance: float,
+        size_tolerance: float,
+        yaw_tolerance: float,
+        min_points: int,
+        boundary_margin: float,
+        same_label: bool = True,
+        exclusive: bool = True,
+        scope: ScopeLike = "roi",
+    ) -> None:
+        self.scope: ObstacleScope = as_scope(scope)
+        for flag, setting in (("same_label", same_label), ("exclusive", exclusive)):
+            if not isinstance(setting, bool):
+                raise InvalidArgument(f"{flag}={setting!r} must be True or False")
+        self.exclusive = exclusive
+        for label, value in (
+            ("center_tolerance", center_tolerance),
+            ("size_tolerance", size_tolerance),
+            ("yaw_tolerance", yaw_tolerance),
+            ("boundary_margin", boundary_margin),
+        ):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise InvalidArgument(f"{label}={value!r} must be a number >= 0")
+        if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 0:
+            raise InvalidArgument(f"min_points={min_points!r} must be an int >= 0")
+        self.center_tolerance = float(center_tolerance)
+        self.size_tolerance = float(size_tolerance)
+        self.yaw_tolerance = math.radians(yaw_tolerance)
+        self.min_points = min_points
+        self.boundary_margin = float(boundary_margin)
+        self.same_label = same_label
+        self.name = (
+            f"{self.moved}(centre<={center_tolerance:g} m, size<={size_tolerance:g} m, "
+            f"yaw<={yaw_tolerance:g} deg{', same label' if same_label else ''}"
+            f"{'' if exclusive else ', pieces share a match'}; "
+            f"{self.scope.describe()})"
+        )
+
+    moved = "moved"
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        """Where ``box`` should be in the follow-up."""
+        raise NotImplementedError
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        return {}
+
+    def _param(self, context: CheckContext, key: str, what: str, makers: str) -> float:
+        """The follow-up's ``params[key]`` (its ``what``, e.g. "rotation"), as a float."""
+        if key not in context.params:
+            raise InvalidArgument(
+                f"{self.name} needs the follow-up's {what} in params[{key!r}] "
+                f"(use {makers}.params())"
+            )
+        return float(context.params[key])
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        moved = self.move_details(context)  # validates the follow-up's parameters first
+        expected = [self.move(box, context) for box in as_boxes(source_output, "source")]
+        found = as_boxes(followup_output, "follow-up")
+        roi = getattr(context.followup_input, "roi", None)
+        # Judged in the follow-up's frame: the turned source boxes and the found ones.
+        judged_expected = self.scope.judged(expected, context.followup_input)
+        judged_found = self.scope.judged(found, context.followup_input)
+        missing = self._unmatched(expected, self._clear(expected, roi, judged_expected), found)
+        extra = self._unmatched(found, self._clear(found, roi, judged_found), expected)
+        details = {
+            **moved,
+            "missing": [],
+            "extra": [],
+            "scope": self.scope.describe(),
+            "unjudged_changes": self._unjudged_changes(
+                expected, found, judged_expected, judged_found
+            ),
+        }
+        if not missing and not extra:
+            return Verdict(True, self.name, details=details)
+        lines = [f"source {expected[i].describe()} ({self.moved}) has no match" for i in missing]
+        lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
+        details["missing"] = [expected[i].describe() for i in missing]
+        details["extra"] = [found[j].describe() for j in extra]
+        return Verdict(False, self.name, "; ".join(lines[:10]), details)
+
+    def _unjudged_changes(
+        self,
+        expected: list[Box],
+        found: list[Box],
+        judged_expected: NDArray[np.bool_],
+        judged_found: NDArray[np.bool_],
+    ) -> int:
+        """Unjudged obstacles, on either side, without a partner within the tolerances."""
+        outside = [i for i, judged in enumerate(judged_expected) if not judged]
+        outside2 = [j for j, judged in enumerate(judged_found) if not judged]
+        return len(self._unmatched(expected, outside, found)) + len(
+            self._unmatched(found, outside2, expected)
+        )
+
+    def _clear(self, boxes: Sequence[Box], roi: Any, judged: NDArray[np.bool_]) -> list[int]:
+        chosen = []
+        for index, box in enumerate(boxes):
+            if not judged[index]:
+                continue
+            if box.label == "unknown" or (box.points or 0) < self.min_points:
+                continue
+            if roi is not None and self.boundary_margin > 0:
+                reach = math.hypot(box.size[0], box.size[1]) / 2.0 + self.boundary_margin
+                if roi.boundary_distance([box.center[:2]])[0] <= reach:
+                    continue
+            chosen.append(index)
+        return chosen
+
+    def _unmatched(
+        self, boxes: Sequence[Box], chosen: list[int], others: Sequence[Box]
+    ) -> list[int]:
+        """Indices in ``chosen`` (into ``boxes``) left without a partner among ``others``."""
+        if not chosen:
+            return []
+        compatible = np.zeros((len(chosen), len(others)), dtype=bool)
+        cost = np.zeros(compatible.shape)
+        for row, index in enumerate(chosen):
+            for col, other in enumerate(others):
+                distance, ok = self._compatible(boxes[index], other)
+                compatible[row, col], cost[row, col] = ok, distance
+        if not self.exclusive:  # pieces of one object may share their partner
+            return [index for row, index in enumerate(chosen) if not compatible[row].any()]
+        pairs = one_to_one(compatible, cost)
+        matched = {chosen[row] for row, _ in pairs}
+        return [index for index in chosen if index not in matched]
+
+    def _compatible(self, a: Box, b: Box) -> tuple[float, bool]:
+        distance = a.center_distance(b)
+        if (self.same_label and a.label != b.label) or distance > self.center_tolerance:
+            return distance, False
+        if abs(a.size[0] - b.size[0]) > self.size_tolerance:
+            return distance, False
+        if abs(a.size[1] - b.size[1]) > self.size_tolerance:
+            return distance, False
+        elongated = a.size[0] - a.size[1] > 0.3 and b.size[0] - b.size[1] > 0.3
+        turned = abs(math.remainder(a.yaw - b.yaw, math.pi))
+        return distance, not (elongated and turned > self.yaw_tolerance)
+
+
+class RotatedObstacles(MovedObstacles):
+    """``O'`` is ``O`` turned by the follow-up's ``theta_deg`` about the sensor (see
+    :class:`MovedObstacles` for what is compared and the tolerances)."""
+
+    moved = "turned"
+
+    def _theta(self, context: CheckContext) -> float:
+        degrees = self._param(
+            context, "theta_deg", "rotation", "rotation_equivariance() or RotateAboutSensor"
+        )
+        return math.radians(degrees)
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        return box.rotated(self._theta(context))
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        self._theta(context)
+        return {"theta_deg": context.params["theta_deg"]}
+
+
+class MirroredObstacles(MovedObstacles):
+    """``O'`` is ``O`` reflected in the sensor's x axis (see :class:`MovedObstacles`)."""
+
+    moved = "mirrored"
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        return box.mirrored()
+
+
+class ShiftedObstacles(MovedObstacles):
+    """``O'`` is ``O`` shifted by the follow-up's ``shift_x_m`` along x (see
+    :class:`MovedObstacles`)."""
+
+    moved = "shifted"
+
+    def _dx(self, context: CheckContext) -> float:
+        return self._param(
+            context, "shift_x_m", "shift", "translation_equivariance() or ShiftAlongX"
+        )
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        return box.translated(self._dx(context), 0.0)
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        return {"shift_x_m": self._dx(context)}
+
+
+_CHECKS: dict[str, type[MovedObstacles]] = {
+    "rotation": RotatedObstacles,
+    "mirror": MirroredObstacles,
+    "translation": ShiftedObstacles,
+}
+
+
+def moved_obstacles(
+    symmetry: Literal["rotation", "mirror", "translation"],
+    *,
+    quarter_turns: bool = True,
+    center_tolerance: float | None = None,
+    size_tolerance: float | None = None,
+    yaw_tolerance: float | None = None,
+    min_points: int | None = None,
+    boundary_margin: float | None = None,
+    same_label: bool | None = None,
+    exclusive: bool = True,
+    scope: ScopeLike = "roi",
+) -> MovedObstacles:
+    """The check for ``symmetry``, with :data:`TURN_TOLERANCES` filling what is not given:
+    a quarter turn's (labels compared), or with ``quarter_turns=False`` (rotations by
+    other angles) the loose ones (labels not compared); ``same_label`` overrides."""
+    if symmetry not in _CHECKS:
+        raise InvalidArgument(f"symmetry={symmetry!r} must be one of {sorted(_CHECKS)}")
+    defaults = TURN_TOLERANCES["quarter_turns" if quarter_turns else "any"]
+    given = (center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin)
+    values = [d if g is None else g for g, d in zip(given, defaults, strict=True)]
+    return _CHECKS[symmetry](
+        center_tolerance=values[0],
+        size_tolerance=values[1],
+        yaw_tolerance=values[2],
+        min_points=values[3],  # type: ignore[arg-type]
+        boundary_margin=values[4],
+        same_label=quarter_turns if same_label is None else same_label,
+        exclusive=exclusive,
+        scope=scope,
+    )

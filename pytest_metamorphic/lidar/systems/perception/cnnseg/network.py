@@ -1,0 +1,160 @@
+"""The trained network, run with onnxruntime on the CPU (no PyTorch needed).
+
+The ONNX file takes ``features`` (batch, 6, size, size) float32 and returns, per cell:
+``objectness`` (batch, 1, size, size, sigmoid applied), ``offset`` (batch, 2, size, size:
+predicted object centre minus cell centre, x and y in metres), ``class_prob`` (batch, 3,
+size, size: softmax over car, pedestrian, cyclist) and ``height`` (batch, 1, size, size:
+the object's top, z in metres). The grid it was trained on is stored in the file's
+metadata (``grid``, JSON), so a model and its feature grid cannot be mixed up.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.systems.perception.cnnseg.features import CHANNELS, GridSpec
+
+__all__ = ["CLASSES", "DEFAULT_MODEL", "NetworkOutput", "OnnxNetwork"]
+
+CLASSES = ("car", "pedestrian", "cyclist")
+DEFAULT_MODEL = Path(__file__).resolve().parent / "cnnseg.onnx"
+_OUTPUTS = ("objectness", "offset", "class_prob", "height")
+
+
+@dataclass(frozen=True)
+class NetworkOutput:
+    """The network's maps for one frame (see the module docstring for each)."""
+
+    objectness: NDArray[np.float32]  # (size, size)
+    offset: NDArray[np.float32]  # (2, size, size)
+    class_prob: NDArray[np.float32]  # (3, size, size)
+    height: NDArray[np.float32]  # (size, size)
+
+
+class OnnxNetwork:
+    """An exported CNN segmentation network.
+
+    Parameters
+    ----------
+    path : str or PathLike, optional
+        The ONNX file; the model shipped with the package by default.
+    threads : int or None
+        onnxruntime's intra-op threads; None lets onnxruntime choose (every core). Use 1
+        when several processes share the machine (pytest-xdist, Dask workers).
+
+    Notes
+    -----
+    The session is created on first use and not pickled, so a detector holding one can
+    travel to Dask workers and process pools.
+    """
+
+    def __init__(self, path: str | os.PathLike[str] | None = None, *, threads: int | None = 1):
+        self.path = Path(DEFAULT_MODEL if path is None else path)
+        if not self.path.is_file():
+            what = "is not a regular file" if self.path.exists() else "does not exist"
+            raise InvalidArgument(f"model file {str(self.path)!r} {what}")
+        if threads is not None and (
+            isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
+        ):
+            raise InvalidArgument(f"threads={threads!r} must be an int >= 1 or None")
+        self.threads = threads
+        self._session: Any = None
+        self._grid: GridSpec | None = None
+
+    def __repr__(self) -> str:
+        return f"OnnxNetwork({str(self.path)!r}, threads={self.threads})"
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The shipped model travels as "the shipped model": a worker finds its own copy
+        # wherever the package is installed there.
+        shipped = self.path == DEFAULT_MODEL
+        return {"path": None if shipped else self.path, "threads": self.threads}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.path = DEFAULT_MODEL if state["path"] is None else state["path"]
+        self.threads = state["threads"]
+        self._session = None
+        self._grid = None
+
+    @property
+    def session(self) -> Any:
+        """The onnxruntime ``InferenceSession`` (created on first use)."""
+        if self._session is None:
+            self._session = _open(self.path, self.threads)
+        return self._session
+
+    @property
+    def grid(self) -> GridSpec:
+        """The feature grid the model was trained on (from the file's metadata)."""
+        if self._grid is None:
+            meta = self.session.get_modelmeta().custom_metadata_map
+            if "grid" not in meta:
+                raise InvalidArgument(f"model file {str(self.path)!r} has no 'grid' metadata")
+            try:
+                self._grid = GridSpec(**json.loads(meta["grid"]))
+            except (TypeError, ValueError) as error:
+                raise InvalidArgument(
+                    f"model file {str(self.path)!r}: bad 'grid' metadata ({error})"
+                ) from None
+        return self._grid
+
+    def metadata(self) -> dict[str, str]:
+        """Everything the training script stored in the file (grid, seed, data, quality)."""
+        return dict(self.session.get_modelmeta().custom_metadata_map)
+
+    def predict(self, features: NDArray[np.float32]) -> list[NetworkOutput]:
+        """Run the network on a batch.
+
+        Parameters
+        ----------
+        features : (batch, 6, size, size) float32
+
+        Returns
+        -------
+        list of NetworkOutput, one per frame of the batch
+        """
+        grid = self.grid
+        expected = (len(CHANNELS), grid.size, grid.size)
+        if features.ndim != 4 or features.shape[1:] != expected:
+            raise InvalidArgument(
+                f"features must have shape (batch, {', '.join(map(str, expected))}), "
+                f"got {features.shape}"
+            )
+        values = self.session.run(
+            list(_OUTPUTS), {"features": np.ascontiguousarray(features, dtype=np.float32)}
+        )
+        objectness, offset, class_prob, height = values
+        return [
+            NetworkOutput(objectness[i, 0], offset[i], class_prob[i], height[i, 0])
+            for i in range(len(features))
+        ]
+
+
+def _open(path: Path, threads: int | None) -> Any:
+    try:
+        import onnxruntime
+    except ImportError:
+        raise InvalidArgument(
+            "the CNN segmentation model needs onnxruntime: pip install "
+            "'pytest-metamorphic[learned]'"
+        ) from None
+    options = onnxruntime.SessionOptions()
+    if threads is not None:
+        options.intra_op_num_threads = threads
+        options.inter_op_num_threads = 1
+    try:
+        return onnxruntime.InferenceSession(
+            str(path), sess_options=options, providers=["CPUExecutionProvider"]
+        )
+    except Exception as error:  # onnxruntime raises its own types for bad files
+        raise InvalidArgument(
+            f"model file {str(path)!r} is not a usable ONNX model: {error}"
+        ) from None

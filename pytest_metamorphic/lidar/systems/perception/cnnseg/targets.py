@@ -1,0 +1,95 @@
+"""What the network is trained to predict, from a rendered frame's ground truth.
+
+Rendered frames (:func:`pytest_metamorphic.lidar.synthetic.render`) label every return with
+the obstacle it hit (the ``instance`` field: the index into ``frame.boxes``; ground and
+background objects are negative). A cell is an object cell when it holds a return of an
+obstacle; when several obstacles share a cell, the one with most returns there wins.
+Each object cell is trained on its obstacle's centre offset, class and top height, like
+Apollo's ``instance_pt``, ``class_score`` and ``height_pt`` blobs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.systems.perception.cnnseg.features import GridSpec, point_cells
+from pytest_metamorphic.lidar.systems.perception.cnnseg.network import CLASSES
+
+__all__ = ["Targets", "cell_targets"]
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Per-cell training targets of one frame.
+
+    Attributes
+    ----------
+    objectness : (size, size) float32
+        1 for object cells, else 0.
+    offset : (2, size, size) float32
+        Obstacle centre minus cell centre (x, y metres); 0 outside object cells.
+    label : (size, size) int64
+        Index into :data:`~.network.CLASSES`; -1 outside object cells.
+    height : (size, size) float32
+        Obstacle top (z, metres); 0 outside object cells.
+    """
+
+    objectness: NDArray[np.float32]
+    offset: NDArray[np.float32]
+    label: NDArray[np.int64]
+    height: NDArray[np.float32]
+
+
+def cell_targets(frame: Frame, grid: GridSpec | None = None) -> Targets:
+    """Targets for a rendered frame (one with an ``instance`` field and its boxes).
+
+    Obstacles labelled ``"unknown"`` are left out (the network learns the three road-user
+    classes; anything else is background to it).
+    """
+    if "instance" not in frame.cloud.fields:
+        raise InvalidArgument(
+            f"{frame!r} has no 'instance' field: training targets need a rendered frame"
+        )
+    grid = grid or GridSpec()
+    instance = np.asarray(frame.cloud.fields["instance"]).astype(np.int64)
+    boxes = list(frame.boxes)
+    if len(boxes) and instance.max() >= len(boxes):
+        raise InvalidArgument(f"{frame!r}: instance ids exceed its {len(boxes)} boxes")
+    n = grid.size
+    flat, inside = point_cells(frame.cloud.points, grid)
+    hit = inside & (instance >= 0)
+    objectness = np.zeros(n * n, dtype=np.float32)
+    offset = np.zeros((2, n * n), dtype=np.float32)
+    label = np.full(n * n, -1, dtype=np.int64)
+    height = np.zeros(n * n, dtype=np.float32)
+    if hit.any():
+        cells, owners = flat[hit], instance[hit]
+        # Most returns per (cell, obstacle) wins the cell.
+        pairs, votes = np.unique(np.stack([cells, owners]), axis=1, return_counts=True)
+        order = np.lexsort((-votes, pairs[0]))
+        pairs = pairs[:, order]
+        first = np.ones(pairs.shape[1], dtype=bool)
+        first[1:] = pairs[0, 1:] != pairs[0, :-1]
+        cell, owner = pairs[0, first], pairs[1, first]
+        classes = np.array([CLASSES.index(b.label) if b.label in CLASSES else -1 for b in boxes])
+        known = classes[owner] >= 0
+        cell, owner = cell[known], owner[known]
+        centers = np.array([b.center for b in boxes], dtype=np.float64)
+        tops = np.array([b.center[2] + b.size[2] / 2.0 for b in boxes], dtype=np.float64)
+        cx, cy = grid.cell_centers()
+        objectness[cell] = 1.0
+        offset[0, cell] = centers[owner, 0] - cx.ravel()[cell]
+        offset[1, cell] = centers[owner, 1] - cy.ravel()[cell]
+        label[cell] = classes[owner]
+        height[cell] = tops[owner]
+    return Targets(
+        objectness.reshape(n, n),
+        offset.reshape(2, n, n),
+        label.reshape(n, n),
+        height.reshape(n, n),
+    )

@@ -1,0 +1,490 @@
+"""Detectors in another process: frames out as files, predictions back as files.
+
+Many perception stacks cannot be imported into the test process: a ROS 2 or C++ node, a
+model in another virtual environment or on a GPU server. :class:`ProcessDetector` makes
+such a stack a system under test, ``detector(frame) -> list[Box]``:
+
+1. the frame's cloud is written to a file (KITTI ``.bin`` float32 x, y, z, intensity by
+   default, or PCD);
+2. the command runs on it and writes its predictions to a file;
+3. the predictions are read back as boxes: JSON (see :func:`read_json_predictions`) or
+   a KITTI label file (camera frame; converted with ``calibration``, by default the
+   axis-swap :func:`~pytest_metamorphic.lidar.io.kitti.sensor_calibration`).
+
+Two ways to run the command:
+
+* **one process per frame** (default): ``command`` contains the placeholders
+  ``{input}`` and ``{output}``, e.g. ``["python", "detect.py", "{input}", "{output}"]``;
+  a non-zero exit status is an error naming the command, its status and its stderr.
+* **one long-lived process** (``persistent=True``), so a model is loaded once: the
+  command is started once; for each frame it is sent one line ``INPUT<TAB>OUTPUT`` on
+  stdin, writes its predictions to OUTPUT, then prints one line on stdout (anything,
+  e.g. ``done``; logs go to stderr). If it dies it is restarted for the next frame.
+  With ``batch_size=k`` it may also be sent up to k frames in one line,
+  ``INPUT1<TAB>OUTPUT1<TAB>INPUT2<TAB>OUTPUT2...``, and answers one line when every
+  OUTPUT is written: campaigns and ``@metamorphic(batch=True)`` tests then hand it a
+  source and its follow-ups together (:mod:`pytest_metamorphic.core.batching`), so a
+  model can run them as one batch.
+
+``timeout`` bounds each frame (the first frame of a process also gets
+``startup_timeout`` for loading); a process past it is killed and the call raises
+:class:`~pytest_metamorphic.core.errors.SystemTimeout`, which the engine and campaigns
+report as a crash, never as a violation. A process that dies, or writes a file that is
+not predictions, raises :class:`~pytest_metamorphic.core.errors.ExternalSystemError`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import selectors
+import shlex
+import shutil
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+from pytest_metamorphic.core.errors import (
+    DataError,
+    ExternalSystemError,
+    InvalidArgument,
+    SystemTimeout,
+)
+from pytest_metamorphic.core.timeout import check_timeout
+from pytest_metamorphic.lidar.io.kitti import (
+    KittiCalibration,
+    read_kitti_calibration,
+    read_kitti_labels,
+    sensor_calibration,
+)
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.systems.detectors import from_mmdet3d, from_openpcdet
+
+__all__ = ["ProcessDetector", "boxes_to_json", "read_json_predictions"]
+
+_STDERR_TAIL = 2000
+
+
+def boxes_to_json(boxes: Sequence[Box]) -> dict[str, Any]:
+    """The JSON predictions format: ``{"boxes": [{"center", "size", "yaw", "label", "score"}]}``."""
+    return {
+        "boxes": [
+            {
+                "center": list(box.center),
+                "size": list(box.size),
+                "yaw": box.yaw,
+                "label": box.label,
+                "score": box.score,
+            }
+            for box in boxes
+        ]
+    }
+
+
+def read_json_predictions(
+    path: str | os.PathLike[str], *, class_names: Sequence[str] | None = None
+) -> list[Box]:
+    """Boxes from a JSON predictions file.
+
+    Accepted layouts: ``{"boxes": [...]}`` or a bare list of box objects (``center``,
+    ``size`` as length/width/height, ``yaw``, ``label``, optional ``score``; see
+    :func:`boxes_to_json`); OpenPCDet's ``{"pred_boxes", "pred_labels", "pred_scores"}``
+    or mmdetection3d's ``{"bboxes_3d", "labels_3d", "scores_3d"}``, which need
+    ``class_names`` (see :mod:`pytest_metamorphic.lidar.systems.detectors`).
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise DataError(f"not a JSON predictions file: {error}", path=path) from None
+    try:
+        if isinstance(data, Mapping) and ("pred_boxes" in data or "bboxes_3d" in data):
+            if class_names is None:
+                raise DataError("OpenPCDet/mmdetection3d arrays need class_names=", path=path)
+            convert = from_openpcdet if "pred_boxes" in data else from_mmdet3d
+            return convert(dict(data), class_names=class_names)
+        items = data.get("boxes") if isinstance(data, Mapping) else data
+        if not isinstance(items, list):
+            raise DataError('expected {"boxes": [...]} or a list of boxes', path=path)
+        return [_box(item, index) for index, item in enumerate(items)]
+    except InvalidArgument as error:
+        raise DataError(str(error), path=path) from None
+
+
+def _box(item: Any, index: int) -> Box:
+    if not isinstance(item, Mapping):
+        raise InvalidArgument(f"boxes[{index}] is {item!r}, not an object")
+    missing = {"center", "size"} - set(item)
+    if missing:
+        raise InvalidArgument(f"boxes[{index}] has no {sorted(missing)}")
+    try:
+        return Box(
+            tuple(item["center"]),
+            tuple(item["size"]),
+            float(item.get("yaw", 0.0)),
+            item.get("label", "unknown"),
+            None if item.get("score") is None else float(item["score"]),
+        )
+    except (TypeError, ValueError) as error:
+        raise InvalidArgument(f"boxes[{index}]: {error}") from None
+
+
+class ProcessDetector:
+    """A detector run as an external command (see the module docstring).
+
+    Parameters
+    ----------
+    command : str or sequence of str
+        The command line (a string is split like a shell would, without a shell).
+    persistent : bool
+        Start the command once and talk to it line by line (default: once per frame,
+        with ``{input}`` and ``{output}`` in the command).
+    input_format : {"bin", "pcd"}
+        How frames are handed over.
+    output_format : {"json", "kitti"}
+        What the command writes.
+    calibration : path or KittiCalibration, optional
+        For ``output_format="kitti"``: how the labels' camera frame relates to the LiDAR
+        (default :func:`~pytest_metamorphic.lidar.io.kitti.sensor_calibration`).
+    class_names : sequence of str, optional
+        For JSON predictions in OpenPCDet's or mmdetection3d's array layout.
+    timeout : float or None
+        Seconds per frame (default 60).
+    startup_timeout : float
+        Extra seconds for the first frame of a fresh process (loading a model).
+    env, cwd
+        The command's environment (added to this process's) and working directory.
+    batch_size : int, optional
+        For ``persistent=True``: the process understands requests of up to this many
+        frames (see the module docstring), and :meth:`run_batch` sends them. None (the
+        default): one frame per request.
+    """
+
+    def __init__(
+        self,
+        command: str | Sequence[str],
+        *,
+        persistent: bool = False,
+        input_format: Literal["bin", "pcd"] = "bin",
+        output_format: Literal["json", "kitti"] = "json",
+        calibration: str | os.PathLike[str] | KittiCalibration | None = None,
+        class_names: Sequence[str] | None = None,
+        timeout: float | None = 60.0,
+        startup_timeout: float = 60.0,
+        env: Mapping[str, str] | None = None,
+        cwd: str | os.PathLike[str] | None = None,
+        batch_size: int | None = None,
+    ) -> None:
+        self.command = _as_command(command)
+        if not isinstance(persistent, bool):
+            raise InvalidArgument(f"persistent={persistent!r} must be True or False")
+        placeholders = any("{input}" in part or "{output}" in part for part in self.command)
+        if not persistent and not (
+            any("{input}" in part for part in self.command)
+            and any("{output}" in part for part in self.command)
+        ):
+            raise InvalidArgument(
+                f"command {self.command!r} needs the placeholders {{input}} and {{output}} "
+                "(or persistent=True for a process that reads requests from stdin)"
+            )
+        if persistent and placeholders:
+            raise InvalidArgument(
+                "a persistent command gets its files on stdin; remove {input}/{output}"
+            )
+        if input_format not in ("bin", "pcd"):
+            raise InvalidArgument(f"input_format={input_format!r} must be 'bin' or 'pcd'")
+        if output_format not in ("json", "kitti"):
+            raise InvalidArgument(f"output_format={output_format!r} must be 'json' or 'kitti'")
+        if calibration is not None and output_format != "kitti":
+            raise InvalidArgument("calibration= is only used with output_format='kitti'")
+        if shutil.which(self.command[0]) is None and not Path(self.command[0]).is_file():
+            raise InvalidArgument(f"command {self.command[0]!r} not found (PATH or a file)")
+        if batch_size is not None:
+            if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+                raise InvalidArgument(f"batch_size={batch_size!r} must be an int >= 1 or None")
+            if not persistent:
+                raise InvalidArgument(
+                    "batch_size= needs persistent=True (batches go to a long-lived process)"
+                )
+        self.batch_size = batch_size
+        self.persistent = persistent
+        self.input_format = input_format
+        self.output_format = output_format
+        self.calibration = calibration
+        self.class_names = None if class_names is None else list(class_names)
+        self.timeout = check_timeout(timeout)
+        self.startup_timeout = check_timeout(startup_timeout, "startup_timeout") or 0.0
+        self.env = None if env is None else {**os.environ, **dict(env)}
+        self.cwd = None if cwd is None else str(cwd)
+        self.calls = 0
+        self.starts = 0
+        self._process: subprocess.Popen[str] | None = None
+        self._stderr: Any = None
+        self._fresh = False
+        self._lock = threading.Lock()
+        self._calib: KittiCalibration | None = None
+
+    def __repr__(self) -> str:
+        mode = "persistent" if self.persistent else "per frame"
+        return f"ProcessDetector({shlex.join(self.command)!r}, {mode})"
+
+    def __getstate__(self) -> dict[str, Any]:
+        # Sent to workers (xdist, Dask) without the running process; each starts its own.
+        state = self.__dict__.copy()
+        state.update(_process=None, _stderr=None, _fresh=False, _lock=None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    def __enter__(self) -> ProcessDetector:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        with contextlib.suppress(Exception):
+            self.close()
+
+    def close(self) -> None:
+        """Stop the long-lived process, if one is running."""
+        process, self._process = self._process, None
+        if process is not None and process.poll() is None:
+            with contextlib.suppress(Exception):
+                process.stdin.close()  # type: ignore[union-attr]
+            try:
+                process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        if self._stderr is not None:
+            self._stderr.close()
+            self._stderr = None
+
+    def __call__(self, frame: Any, roi: Any = None) -> list[Box]:
+        """Run the command on ``frame`` (a Frame, a PointCloud or an (n, 4) array)."""
+        cloud = _as_cloud(frame)
+        with self._lock, tempfile.TemporaryDirectory(prefix="mt-process-") as folder:
+            ((source, target),) = self._files(Path(folder), 1)
+            self._write(cloud, source)
+            self.calls += 1
+            if self.persistent:
+                self._request([(source, target)])
+            else:
+                self._run_once(source, target)
+            return self._read(target)
+
+    def run_batch(self, frames: Sequence[Any]) -> list[list[Box]]:
+        """Run the command on several frames in one request (needs ``batch_size``).
+
+        Returns one list of boxes per frame, in order. The request may take ``timeout``
+        seconds per frame.
+        """
+        if self.batch_size is None:
+            raise InvalidArgument(
+                f"{self!r} takes one frame per request; give batch_size= to send batches"
+            )
+        if len(frames) > self.batch_size:
+            raise InvalidArgument(f"{len(frames)} frames exceed batch_size={self.batch_size}")
+        clouds = [_as_cloud(frame) for frame in frames]
+        if not clouds:
+            return []
+        with self._lock, tempfile.TemporaryDirectory(prefix="mt-process-") as folder:
+            files = self._files(Path(folder), len(clouds))
+            for cloud, (source, _) in zip(clouds, files, strict=True):
+                self._write(cloud, source)
+            self.calls += len(clouds)
+            self._request(files)
+            return [self._read(target) for _, target in files]
+
+    def _files(self, folder: Path, count: int) -> list[tuple[Path, Path]]:
+        suffix = "json" if self.output_format == "json" else "txt"
+        tags = [""] if count == 1 else [str(i) for i in range(count)]
+        return [
+            (folder / f"frame{tag}.{self.input_format}", folder / f"predictions{tag}.{suffix}")
+            for tag in tags
+        ]
+
+    # -- handing over ----------------------------------------------------------------------
+
+    def _write(self, cloud: PointCloud, path: Path) -> None:
+        from pytest_metamorphic.lidar.io import write_bin, write_pcd
+
+        if self.input_format == "bin":
+            write_bin(cloud, path)
+        else:
+            write_pcd(cloud, path)
+
+    def _read(self, path: Path) -> list[Box]:
+        if not path.is_file():
+            raise ExternalSystemError(
+                f"{self._name()} wrote no predictions to {path.name} (expected a "
+                f"{self.output_format} file there)"
+            )
+        try:
+            if self.output_format == "json":
+                return read_json_predictions(path, class_names=self.class_names)
+            return read_kitti_labels(path, self._calibration())
+        except DataError as error:
+            raise ExternalSystemError(f"{self._name()} wrote garbage: {error}") from None
+
+    def _calibration(self) -> KittiCalibration:
+        if self._calib is None:
+            given = self.calibration
+            if given is None:
+                self._calib = sensor_calibration()
+            elif isinstance(given, KittiCalibration):
+                self._calib = given
+            else:
+                self._calib = read_kitti_calibration(given)
+        return self._calib
+
+    def _name(self) -> str:
+        return f"command {shlex.join(self.command)!r}"
+
+    # -- one process per frame -------------------------------------------------------------
+
+    def _run_once(self, source: Path, target: Path) -> None:
+        args = [part.format(input=source, output=target) for part in self.command]
+        self.starts += 1
+        try:
+            done = subprocess.run(
+                args,
+                capture_output=True,
+                text=True,
+                timeout=None if self.timeout is None else self.timeout + self.startup_timeout,
+                env=self.env,
+                cwd=self.cwd,
+                stdin=subprocess.DEVNULL,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            raise SystemTimeout(
+                f"{self._name()} did not finish within {self.timeout:g} s (+ "
+                f"{self.startup_timeout:g} s start-up); killed",
+                seconds=float(self.timeout or 0),
+            ) from None
+        except OSError as error:
+            raise ExternalSystemError(f"{self._name()} could not start: {error}") from None
+        if done.returncode != 0:
+            raise ExternalSystemError(
+                f"{self._name()} exited with status {done.returncode}; stderr ends:\n"
+                f"{_tail(done.stderr)}"
+            )
+
+    # -- one long-lived process ------------------------------------------------------------
+
+    def _start(self) -> subprocess.Popen[str]:
+        self.close()
+        # Kept open for the process's lifetime (closed by close()): its stderr, for errors.
+        self._stderr = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # noqa: SIM115
+        try:
+            self._process = subprocess.Popen(
+                self.command,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=self._stderr,
+                text=True,
+                bufsize=1,
+                env=self.env,
+                cwd=self.cwd,
+            )
+        except OSError as error:
+            raise ExternalSystemError(f"{self._name()} could not start: {error}") from None
+        self.starts += 1
+        self._fresh = True
+        return self._process
+
+    def _request(self, files: Sequence[tuple[Path, Path]]) -> None:
+        process = self._process
+        if process is None or process.poll() is not None:
+            process = self._start()
+        limit = None if self.timeout is None else self.timeout * len(files)
+        if limit is not None and self._fresh:
+            limit += self.startup_timeout
+        self._fresh = False
+        line = "\t".join(f"{source}\t{target}" for source, target in files)
+        try:
+            process.stdin.write(f"{line}\n")  # type: ignore[union-attr]
+            process.stdin.flush()  # type: ignore[union-attr]
+        except (BrokenPipeError, OSError):
+            self._died(process)
+        answer = self._readline(process, limit)
+        if answer is None:
+            self._died(process)
+
+    def _readline(self, process: subprocess.Popen[str], limit: float | None) -> str | None:
+        """One line of the process's stdout; None at end of file; SystemTimeout past ``limit``."""
+        stdout = process.stdout
+        assert stdout is not None
+        with selectors.DefaultSelector() as selector:
+            selector.register(stdout, selectors.EVENT_READ)
+            deadline = None if limit is None else time.monotonic() + limit
+            while True:
+                left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+                if selector.select(left):
+                    line = stdout.readline()
+                    return line if line else None
+                if deadline is not None and time.monotonic() >= deadline:
+                    process.kill()
+                    process.wait()
+                    self._process = None
+                    raise SystemTimeout(
+                        f"{self._name()} gave no answer within {limit:g} s; killed (it is "
+                        "started again for the next frame)",
+                        seconds=float(limit or 0),
+                    )
+
+    def _died(self, process: subprocess.Popen[str]) -> None:
+        try:
+            status = process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            status = process.wait()
+        self._process = None
+        stderr = ""
+        if self._stderr is not None:
+            self._stderr.seek(0)
+            stderr = self._stderr.read()
+        raise ExternalSystemError(
+            f"{self._name()} died (exit status {status}) before answering; stderr ends:\n"
+            f"{_tail(stderr)}"
+        )
+
+
+def _tail(text: str) -> str:
+    text = (text or "").strip()
+    if not text:
+        return "    (nothing)"
+    if len(text) > _STDERR_TAIL:
+        text = "..." + text[-_STDERR_TAIL:]
+    return "\n".join(f"    {line}" for line in text.splitlines())
+
+
+def _as_command(command: Any) -> list[str]:
+    if isinstance(command, str):
+        parts = shlex.split(command)
+    elif isinstance(command, Sequence) and all(
+        isinstance(part, (str, os.PathLike)) for part in command
+    ):
+        parts = [os.fspath(part) for part in command]
+    else:
+        raise InvalidArgument(f"command={command!r} must be a string or a list of strings")
+    if not parts:
+        raise InvalidArgument("command is empty")
+    return parts
+
+
+def _as_cloud(frame: Any) -> PointCloud:
+    cloud = getattr(frame, "cloud", frame)
+    if isinstance(cloud, PointCloud):
+        return cloud
+    return PointCloud(cloud, name="frame")

@@ -1,0 +1,236 @@
+"""Putting a real object into another sweep: its surface re-cast with the target's beams,
+what it stands in front of hidden, and the relation built on it valid on real sweeps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+
+import conftest
+from pytest_metamorphic import InvalidArgument, MetamorphicViolation, metamorphic
+from pytest_metamorphic.core.relations import CheckContext
+from pytest_metamorphic.lidar.followups.edit import OthersKept
+from pytest_metamorphic.lidar.followups.insert import (
+    INSERTED_INSTANCE,
+    RANGE_FACTORS,
+    InsertedDetected,
+    InsertObject,
+    ObjectTemplate,
+    Placement,
+    free_placements,
+)
+from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+from pytest_metamorphic.lidar.systems.perception.mutants import mutant
+from pytest_metamorphic.lidar.systems.perception.whole_scene import WholeScenePerception
+from pytest_metamorphic.relations.lidar import object_insertion, object_templates
+from tests.core.lidar_cases import GROUND_Z, ROAD, kitti, standing, street
+
+CAR = standing(12.0, -2.5, (4.3, 1.8, 1.5), 0.35, "car")
+
+
+def _scene(*boxes):  # type: ignore[no-untyped-def]
+    return render(Scene(roi=ROAD, obstacles=tuple(Obstacle(box) for box in boxes), name="t"))
+
+
+def _car_template() -> ObjectTemplate:
+    frame = street()
+    return ObjectTemplate.from_frame(frame, frame.boxes[0])
+
+
+def test_a_template_holds_the_objects_returns_in_its_own_coordinates() -> None:
+    template = _car_template()
+    frame = street()
+    own = frame.cloud.fields["instance"] == 0
+    # All but its lowest returns (within 10 cm of the ground, read as ground).
+    assert template.label == "car" and 0.95 * own.sum() <= len(template.vertices) <= own.sum()
+    length, width, height = template.size
+    assert (np.abs(template.vertices[:, 0]) <= length / 2 + 0.2).all()
+    assert (np.abs(template.vertices[:, 1]) <= width / 2 + 0.2).all()
+    assert template.vertices[:, 2].min() > 0.05 and template.vertices[:, 2].max() <= height + 0.05
+    assert template.range == pytest.approx(math.hypot(12.0, -2.5))
+    assert template.view == pytest.approx(0.35 - math.atan2(-2.5, 12.0))
+    assert len(template.faces) > len(template.vertices)  # a surface, not scattered points
+
+
+def test_inserted_returns_match_what_the_renderer_sees_of_the_same_car_there() -> None:
+    """The physical check: a car turned about the sensor and moved 25 % farther, inserted
+    into an empty road, gives the returns a ray-traced car of the same shape gives there."""
+    template = _car_template()
+    bearing, distance = math.radians(8.0), template.range * 1.25
+    placement = Placement(bearing, distance, GROUND_Z)
+    there = template.box_at(placement)
+    rendered = _scene(there)
+    truth = rendered.cloud.fields["instance"] == 0
+    empty = _scene()
+    insertion = InsertObject.onto(empty, template, placement)
+    count = len(insertion)
+    assert 0.8 * truth.sum() <= count <= 1.2 * truth.sum()
+    assert there.grown(0.15).contains(insertion.points[:, :3]).mean() > 0.97
+    # What it hides is the ground the rendered car hides (the empty road's returns that
+    # the rendered scene lacks, up to the car's own lower edge, which the mesh lacks).
+    hidden_truth = len(empty.cloud) - (~truth).sum()
+    assert 0.8 * hidden_truth <= len(insertion.hidden) <= 1.3 * hidden_truth
+    assert (np.linalg.norm(empty.cloud.xyz[insertion.hidden], axis=1) > distance - 3.0).all()
+    # The new returns are the target's beams: their rings and instance come along.
+    after = insertion.apply(empty)
+    assert set(after.cloud.fields["ring"][-count:]) <= set(range(64))
+    assert (after.cloud.fields["instance"][-count:] == INSERTED_INSTANCE).all()
+    assert (
+        after.boxes[-1] == there
+        and len(after.cloud) == len(empty.cloud) - len(insertion.hidden) + count
+    )
+
+
+def test_farther_means_fewer_returns_and_nothing_behind_an_inserted_car_stays_visible() -> None:
+    template = _car_template()
+    empty = _scene()
+    counts = [
+        len(InsertObject.onto(empty, template, Placement(0.1, template.range * f, GROUND_Z)))
+        for f in (0.8, 1.0, 1.5)
+    ]
+    assert counts[0] > counts[1] > counts[2] > 0
+    # A pedestrian behind the inserted car loses the returns the car now blocks.
+    walker = standing(template.range + 6.0, 0.0, (0.6, 0.5, 1.75), 0.0, "pedestrian")
+    frame = _scene(walker)
+    insertion = InsertObject.onto(frame, template, Placement(0.0, template.range, GROUND_Z))
+    own = frame.cloud.fields["instance"] == 0
+    assert own[insertion.hidden].sum() > 0.8 * own.sum()
+    assert insertion.affects(walker, 5.0)  # behind it: exempt from "the others kept"
+
+
+def test_reducing_the_returns_brings_back_what_only_they_hid() -> None:
+    template = _car_template()
+    empty = _scene()
+    insertion = InsertObject.onto(empty, template, Placement(0.0, template.range, GROUND_Z))
+    half = insertion.restrict(range(0, len(insertion), 2))
+    assert len(half) == (len(insertion) + 1) // 2
+    assert 0 < len(half.hidden) < len(insertion.hidden)
+    assert np.isin(half.hidden, insertion.hidden).all()
+    assert len(insertion.restrict([]).hidden) == 0
+    assert insertion.restrict([]).apply(empty).cloud.equals(empty.cloud)
+    with pytest.raises(InvalidArgument, match="built for a frame of"):
+        insertion.apply(street())
+
+
+def test_free_placements_stand_on_seen_free_ground_inside_the_roi() -> None:
+    template = _car_template()
+    frame = kitti(1)
+    places = free_placements(frame, template, limit=8)
+    assert len(places) == 8
+    for placement in places:
+        box = template.box_at(placement)
+        assert frame.roi.contains(box.corners_bev(), method="exact").all()
+        flat = np.column_stack([frame.cloud.xy, np.full(len(frame.cloud), box.center[2])])
+        inside = box.grown(0.5).contains(flat)
+        assert inside.sum() >= 5  # the ground there was seen
+        assert (frame.cloud.xyz[inside, 2] < placement.ground_z + 0.5).all()  # nothing on it
+        factor = placement.range / template.range
+        assert min(abs(factor - f) for f in RANGE_FACTORS) < 1e-9
+    # The smallest move first (degrees turned + 20 x |log of the range factor|): what
+    # shrinking goes toward.
+    moves = [
+        abs(math.degrees(math.remainder(p.bearing - template.bearing, 2 * math.pi)))
+        + 20 * abs(math.log(p.range / template.range))
+        for p in places
+    ]
+    assert moves == sorted(moves) or np.all(np.diff(moves) > -1e-6)
+
+
+@pytest.mark.parametrize("system", [ReferencePerception(), WholeScenePerception()], ids=repr)
+def test_object_insertion_holds_on_every_kitti_sweep_and_a_rendered_street(system) -> None:  # type: ignore[no-untyped-def]
+    """Validity: objects from all seven frames, every other one inserted at its first two
+    free places in each frame: 0 violations."""
+    relation = object_insertion().relation
+    frames = [street(), *(kitti(index) for index in range(6))]
+    library = object_templates(frames)
+    runs = judged = 0
+    for frame in frames:
+        source_output = system(frame)
+        for template in library[::2]:
+            for placement in free_placements(frame, template, limit=2):
+                insertion = InsertObject.onto(frame, template, placement)
+                followup = insertion.apply(frame)
+                context = CheckContext(frame, followup, insertion.params(), 0)
+                verdict = relation.check(source_output, system(followup), context)
+                assert verdict.holds, verdict.explanation
+                runs += 1
+                judged += verdict.details[relation.relations[0].name].get("judged", False)
+    assert runs >= 100 and judged >= 80
+
+
+def test_a_fixed_length_object_list_loses_a_far_obstacle_when_an_object_is_inserted() -> None:
+    faulty = mutant("nearest_object_list")
+    frame = kitti(5)
+    relation = object_insertion().relation
+    template = _car_template()
+    placement = free_placements(frame, template, limit=1)[0]  # 11 m ahead
+    insertion = InsertObject.onto(frame, template, placement)
+    followup = insertion.apply(frame)
+    verdict = relation.check(
+        faulty(frame), faulty(followup), CheckContext(frame, followup, insertion.params(), 0)
+    )
+    assert not verdict.holds and "has no match" in verdict.explanation
+
+
+def test_an_undetected_insertion_reduces_to_the_fewest_returns_that_still_fail() -> None:
+    """A detector that needs 40 points misses an inserted pedestrian of 30-39 returns;
+    the reduction ends at exactly ``min_points`` (30) returns, proven 1-minimal (one fewer
+    and the check no longer applies). Derandomized, so it does not depend on the seed."""
+    walker = _scene(standing(28.0, 1.0, (0.6, 0.5, 1.75), 0.0, "pedestrian"))
+    far = ObjectTemplate.from_frame(walker, walker.boxes[0])  # 41 returns at 28 m
+
+    @settings(
+        max_examples=50, derandomize=True, database=None, deadline=None,
+        suppress_health_check=list(HealthCheck),
+    )  # fmt: skip
+    @metamorphic(source=st.just(street()), relations=[object_insertion(objects=[far])])
+    def dense_min_points_on_a_street(frame):  # type: ignore[no-untyped-def]
+        return mutant("dense_min_points")(frame)
+
+    with pytest.raises(MetamorphicViolation) as caught:
+        dense_min_points_on_a_street()
+    message = str(caught.value)
+    assert "minimal follow-up: 30 of " in message and "proven 1-minimal" in message
+    assert "is not detected" in message
+
+
+def test_checks_name_what_they_need() -> None:
+    detected = InsertedDetected()
+    assert detected.check([], [], CheckContext(None, None, {"insert_object": None}, 0))
+    with pytest.raises(InvalidArgument, match="insert_object"):
+        detected.check([], [], CheckContext(None, None, {"insert_object": "car"}, 0))
+    with pytest.raises(InvalidArgument, match="not an object edit"):
+        OthersKept().check([], [], CheckContext(None, None, {"insert_object": "car"}, 0))
+    with pytest.raises(InvalidArgument, match="returns; a template needs"):
+        ObjectTemplate.from_frame(street(), standing(40.0, 30.0, (1.0, 1.0, 1.0), 0.0, "car"))
+    with pytest.raises(InvalidArgument, match="ObjectTemplate"):
+        object_insertion(objects=["car"])  # type: ignore[list-item]
+    with pytest.raises(InvalidArgument, match="objects is empty"):
+        object_insertion(objects=[])
+    with pytest.raises(InvalidArgument, match="min_points"):
+        InsertedDetected(min_points=0)
+
+
+def test_a_short_range_gate_misses_a_labelled_car_put_back_at_56_m() -> None:
+    """``short_range_gate`` drops everything beyond 40 m: no relation comparing runs sees
+    it (nothing there is ever reported), an inserted object does. KITTI sweep 1's labelled
+    car, seen at 70 m, put on free ground at 56 m with 114 returns."""
+    frame = FrameCatalog(
+        conftest.shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    ).load(1)
+    template = object_templates(frame)[0]
+    insertion = InsertObject.onto(frame, template, free_placements(frame, template, limit=1)[0])
+    followup = insertion.apply(frame)
+    faulty = mutant("short_range_gate")
+    context = CheckContext(frame, followup, insertion.params(), 0)
+    verdict = object_insertion().relation.check(faulty(frame), faulty(followup), context)
+    assert not verdict.holds and "(114 returns) is not detected" in verdict.explanation
+    reference = ReferencePerception()
+    assert object_insertion().relation.check(reference(frame), reference(followup), context)
