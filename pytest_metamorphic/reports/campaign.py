@@ -113,13 +113,16 @@ def describe_execution(entries: list[dict[str, Any]]) -> str:
         return "ran: nothing this session (every source read back from the logs)"
     parts = []
     for entry in (e for e in entries if e.get("engine") == "dask"):
-        lost = entry.get("workers_replaced", 0)
+        # "workers_replaced" is what logs of 0.4 and earlier recorded for lost workers
+        lost = entry.get("workers_lost", entry.get("workers_replaced", 0))
+        joined = entry.get("workers_joined", 0)
         crashes = entry.get("worker_crashes", 0)
         parts.append(
             f"on the Dask cluster {entry.get('scheduler')} ({entry.get('workers')} workers, "
             f"{entry.get('units')} tasks of {entry.get('batch_size')} sources, "
             f"{entry.get('sources')} sources in {entry.get('seconds', 0):.1f} s"
-            + (f", {lost} worker(s) replaced" if lost else "")
+            + (f", {lost} worker(s) lost" if lost else "")
+            + (f", {joined} worker(s) joined" if joined else "")
             + (f", {crashes} source(s) killed their worker" if crashes else "")
             + ")"
         )

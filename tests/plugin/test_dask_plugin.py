@@ -151,12 +151,12 @@ def test_an_unreachable_scheduler_is_a_clear_error(
 def test_a_campaign_runs_on_a_cluster_started_with_the_dask_command_line(
     pytester: pytest.Pytester, tmp_path_factory: pytest.TempPathFactory
 ) -> None:
-    # What the README's multi-machine recipe does, on one machine: `dask scheduler` and
-    # `dask worker ADDRESS` as separate processes, pytest connecting by address.
+    # What the documented multi-machine recipe does, on one machine: `python -m dask scheduler`
+    # and `python -m dask worker ADDRESS` (from the folder of the tests) as separate processes.
     folder = tmp_path_factory.mktemp("scheduler")
     scheduler_file = folder / "scheduler.json"
     started = []
-    # The README's advice for remote workers (without it they warn, and -W error fails).
+    # The documented advice for remote workers (without it they warn, and -W error fails).
     (folder / "dask.yaml").write_text(
         "distributed:\n  nanny:\n    pre-spawn-environ:\n      MALLOC_TRIM_THRESHOLD_: null\n"
     )

@@ -281,18 +281,22 @@ class DaskEngine:
                 f"{len(broken)} of {len(answers)} Dask worker(s) cannot run campaign "
                 f"{self.campaign.name!r}; {worker}: {type(error).__name__}: {error}. Every "
                 "worker needs pytest-metamorphic, the module defining the campaign's "
-                "functions importable, and the data at the same path (README: running on "
-                "a cluster)."
+                "functions importable, and the data at the same path (docs/campaigns.md: "
+                "running on several machines)."
             )
 
     def describe(self) -> dict[str, Any]:
         workers = self.workers_seen | set(self.units)
+        current = set(self._current_workers())
         return {
             "engine": "dask",
             "scheduler": self.client.scheduler.address,
             "workers": len(self.workers_seen),
             "workers_used": len(self.units),
-            "workers_replaced": len(workers - set(self._current_workers())),
+            # Lost: gone by the end. Joined: ran sources without being there at the start
+            # (a restarted or added worker). Only both together are a replacement.
+            "workers_lost": len(workers - current),
+            "workers_joined": len(set(self.units) - self.workers_seen),
             "batch_size": self.batch_size or "guided",
             "units": sum(self.units.values()),
             "units_per_worker": dict(sorted(self.units.items())),

@@ -27,6 +27,7 @@ from pytest_metamorphic.core.campaign import (
     SystemFactory,
     run_campaign,
 )
+from pytest_metamorphic.reports.campaign import describe_execution
 
 distributed = pytest.importorskip("distributed", reason="the dask extra is not installed")
 
@@ -210,6 +211,21 @@ def test_a_killed_worker_loses_nothing_and_counts_nothing_twice(tmp_path: Path) 
     assert spread.outcome_json() == run_campaign(campaign).outcome_json()
     assert log_sources(logs.paths()) == Counter(range(60))  # each source logged once
     assert spread.execution[0]["worker_crashes"] == 0
+    # Lost is what happened; a replacement only if the nanny's new worker also ran sources.
+    entry = spread.execution[0]
+    assert entry["workers_lost"] == 1
+    said = describe_execution(spread.execution)
+    assert "1 worker(s) lost" in said and "replaced" not in said
+
+
+def test_a_lost_worker_is_not_called_replaced() -> None:
+    entry = {"engine": "dask", "scheduler": "tcp://a:1", "workers": 2, "units": 5}
+    lost = describe_execution([{**entry, "workers_lost": 1, "workers_joined": 0}])
+    assert "1 worker(s) lost" in lost and "joined" not in lost
+    both = describe_execution([{**entry, "workers_lost": 1, "workers_joined": 1}])
+    assert "1 worker(s) lost, 1 worker(s) joined" in both
+    old_log = describe_execution([{**entry, "workers_replaced": 1}])  # logs of 0.4
+    assert "1 worker(s) lost" in old_log
 
 
 def test_a_source_that_kills_its_worker_is_a_crash_and_the_campaign_goes_on(
