@@ -27,6 +27,7 @@ def test_the_version_lives_in_one_place() -> None:
 
 def test_the_wheel_holds_the_licence_the_notice_and_the_model(tmp_path: Path) -> None:
     pytest.importorskip("setuptools")
+    pytest.importorskip("wheel", reason="setuptools builds wheels with the wheel package")
     source = tmp_path / "src"
     source.mkdir()
     for name in ("pyproject.toml", "README.md", "LICENSE", "NOTICE"):

@@ -1,17 +1,22 @@
 """Deep equality and difference descriptions that understand numpy arrays.
 
 Used by the ``equal`` relation, by :class:`~pytest_metamorphic.core.matching.EqualityMatcher`
-and by the engine's determinism re-check, so all three agree on what "the same output" is.
+and by the engine's determinism re-check, so all three agree on what "the same output" is;
+:func:`value_digest` condenses a value to a short digest (campaign logs, the engine's
+memory of a case that timed out).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import fields, is_dataclass
 from typing import Any
 
-__all__ = ["deep_equal", "describe_value", "first_difference"]
+__all__ = ["deep_equal", "describe_value", "first_difference", "value_digest"]
 
 _MAX_REPR = 120
 
@@ -112,3 +117,48 @@ def _array_difference(a: Any, b: Any, where: str) -> str | None:
     index = tuple(int(i) for i in np.argwhere(~same)[0])
     count = int((~same).sum())
     return f"{where}{list(index)}: {x[index]!r} != {y[index]!r} ({count} element(s) differ)"
+
+
+# Deeper structures are cut: a fingerprint, not a serialisation.
+_MAX_DEPTH = 40
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
+
+
+def value_digest(value: Any) -> str:
+    """A short digest of a value, equal for equal values across processes (arrays by
+    their bytes, containers element by element, dataclasses field by field, anything
+    else by its ``repr`` without memory addresses)."""
+    digest = hashlib.sha1()
+    _feed(digest, value, 0)
+    return digest.hexdigest()[:16]
+
+
+def _feed(digest: Any, value: Any, depth: int) -> None:
+    if depth > _MAX_DEPTH:
+        digest.update(b"...")
+        return
+    array = hasattr(value, "tobytes") and hasattr(value, "dtype") and hasattr(value, "shape")
+    if array and getattr(value.dtype, "kind", "O") != "O":
+        digest.update(f"array {value.dtype} {value.shape}:".encode())
+        digest.update(value.tobytes())
+    elif isinstance(value, (list, tuple)):
+        digest.update(b"[")
+        for item in value:
+            _feed(digest, item, depth + 1)
+            digest.update(b",")
+        digest.update(b"]")
+    elif isinstance(value, dict):
+        digest.update(b"{")
+        for key in sorted(value, key=repr):
+            _feed(digest, key, depth + 1)
+            digest.update(b":")
+            _feed(digest, value[key], depth + 1)
+        digest.update(b"}")
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        digest.update(type(value).__qualname__.encode() + b"(")
+        for field in dataclasses.fields(value):
+            _feed(digest, getattr(value, field.name), depth + 1)
+            digest.update(b",")
+        digest.update(b")")
+    else:
+        digest.update(_ADDRESS.sub("", repr(value)).encode())

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from hypothesis import given, settings
+from hypothesis import given, reject, settings
 from hypothesis.errors import HypothesisException
 from hypothesis.strategies import SearchStrategy
 
@@ -36,7 +36,7 @@ from pytest_metamorphic.core.cases import (
     _resolve_relations,
     _validate_followups,
 )
-from pytest_metamorphic.core.comparison import first_difference
+from pytest_metamorphic.core.comparison import first_difference, value_digest
 from pytest_metamorphic.core.errors import (
     InvalidArgument,
     MetamorphicViolation,
@@ -50,7 +50,7 @@ from pytest_metamorphic.core.stats import (
     DEFAULT_MINIMIZE_BUDGET,
     current_recorder,
 )
-from pytest_metamorphic.core.timeout import call_with_timeout, check_timeout
+from pytest_metamorphic.core.timeout import call_isolated, call_with_timeout, check_timeout
 from pytest_metamorphic.core.violations import (
     ViolationRecord,
     _hypothesis_seed,
@@ -101,8 +101,10 @@ class _Runner:
         check_determinism: bool | None,
         timeout: float | None = None,
         batch: int = 0,
+        isolate: bool = False,
     ) -> None:
         self.fn = fn if not batch else _SingleOfBatch(fn)
+        self.call = call_isolated if isolate else call_with_timeout
         self.batch_fn = fn if batch else None
         self.batch = batch
         self.mrs = mrs
@@ -110,6 +112,8 @@ class _Runner:
         self.timeout = timeout
         # Outputs of the current case computed ahead in batches: id(input) -> outcome.
         self._ahead: dict[int, tuple[Any, BaseException | None]] = {}
+        self._case: MetamorphicCase | None = None
+        self._replay_timeout: BaseException | None = None
 
     def _limit(self) -> float | None:
         """The per-call time limit: the decorator's, else ``--mt-timeout``'s, else none."""
@@ -121,11 +125,21 @@ class _Runner:
     def __call__(self, case: MetamorphicCase, fixtures: dict[str, Any]) -> None:
         __tracebackhide__ = True  # failures should show the user's frames, not the engine's
         recorder = current_recorder()
+        self._case = case
+        if recorder is not None and recorder.timed_out is not None and not _in_final_run():
+            # A system that hung once is not waited for again while Hypothesis shrinks
+            # (before: each shrink step waited the full limit and left a thread behind):
+            # the case that hung fails the same way at once, every other is invalid.
+            digest, error = recorder.timed_out
+            if digest != _case_digest(case):
+                reject()
+            self._replay_timeout = error
         self._ahead = self._run_ahead(case, fixtures) if self.batch else {}
         try:
             self._check_case(case, fixtures, recorder)
         finally:
             self._ahead = {}
+            self._replay_timeout = None
 
     def _run_ahead(
         self, case: MetamorphicCase, fixtures: dict[str, Any]
@@ -243,7 +257,9 @@ class _Runner:
             return None, ""
 
         def run(value: Any) -> Any:
-            return self.fn(value, **fixtures)
+            # The time limit holds while reducing too (a reduced input may hang).
+            what = "a reduced follow-up"
+            return self.call(self.fn, value, seconds=self._limit(), what=what, **fixtures)
 
         try:
             reduction = reduce_followup(
@@ -279,18 +295,23 @@ class _Runner:
     ) -> Any:
         __tracebackhide__ = True
         try:
+            if self._replay_timeout is not None:
+                # The same error object: Hypothesis sees the same failure as the first time.
+                raise self._replay_timeout
             ahead = None if fresh else self._ahead.get(id(value))
             if ahead is not None:
                 output, error = ahead
                 if error is not None:
                     raise error
                 return output
-            return call_with_timeout(self.fn, value, seconds=self._limit(), what=what, **fixtures)
+            return self.call(self.fn, value, seconds=self._limit(), what=what, **fixtures)
         except HypothesisException:
             raise  # assume(), reject(): Hypothesis control flow, not a crash
         except Exception as error:
             recorder = current_recorder()
             if recorder:
+                if isinstance(error, SystemTimeout) and recorder.timed_out is None:
+                    recorder.timed_out = (_case_digest(self._case), error)
                 if relation is None:
                     recorder.source_crashes += 1
                 else:
@@ -343,6 +364,7 @@ def metamorphic(
     check_determinism: bool | None = None,
     timeout: float | None = None,
     batch: bool | int = False,
+    isolate: bool = False,
 ) -> Callable[[Callable[..., Any]], Callable[..., None]]:
     """Turn a function that runs the system under test into a metamorphic Hypothesis test.
 
@@ -366,8 +388,16 @@ def metamorphic(
         Seconds one call of the system may take (default: ``--mt-timeout``, else no
         limit). A call that takes longer is reported as a crash of that call
         (:class:`~pytest_metamorphic.core.errors.SystemTimeout` chained), never as a
-        violation, and Hypothesis saves the case for replay as for any failure. An
-        in-process call cannot be stopped: it is left running in a background thread.
+        violation, and Hypothesis saves the case for replay as for any failure. After a
+        time-out the system is not called again while Hypothesis shrinks (only to replay
+        the case that timed out), so a hanging system costs about twice the limit. An
+        in-process call cannot be stopped: it is left running in a background thread (at
+        most 16 at once), unless ``isolate``.
+    isolate : bool
+        Run each call in a forked child process that is killed at the time limit: for
+        systems stuck in C code that holds the GIL (a thread-based limit cannot even
+        fire then), or that must not be left running. Outputs must pickle; POSIX only;
+        not with ``batch``.
     batch : bool or int
         True (or a batch size; True means 8): the decorated function takes a *list* of
         inputs and returns their outputs in order, so a model runs the source and its
@@ -391,6 +421,10 @@ def metamorphic(
         raise InvalidArgument(f"check_determinism={check_determinism!r} must be a bool")
     limit = check_timeout(timeout)
     batch_size = _check_batch(batch)
+    if not isinstance(isolate, bool):
+        raise InvalidArgument(f"isolate={isolate!r} must be a bool")
+    if isolate and batch_size:
+        raise InvalidArgument("isolate=True runs one input per process call; not with batch=")
 
     def decorate(fn: Callable[..., Any]) -> Callable[..., None]:
         if not callable(fn):
@@ -405,7 +439,7 @@ def metamorphic(
                 f"{fn.__qualname__} is async; @metamorphic needs a plain function"
             )
         _, fixtures = _input_parameter(fn)
-        runner = _Runner(fn, mrs, check_determinism, limit, batch_size)
+        runner = _Runner(fn, mrs, check_determinism, limit, batch_size, isolate)
 
         @functools.wraps(fn)
         def test(**kwargs: Any) -> None:
@@ -432,6 +466,11 @@ def metamorphic(
         return wrapped
 
     return decorate
+
+
+def _case_digest(case: MetamorphicCase | None) -> str:
+    """Tells a case from every other: the one that timed out is recognised on replay."""
+    return "" if case is None else value_digest((case.source, case.followups))
 
 
 def _check_batch(batch: Any) -> int:

@@ -11,10 +11,12 @@ from typing import Any
 __all__ = [
     "DataError",
     "ExternalSystemError",
+    "FolderInUse",
     "InvalidArgument",
     "MetamorphicError",
     "MetamorphicViolation",
     "NondeterministicSystemError",
+    "OtherSystemError",
     "SystemTimeout",
     "SystemUnderTestCrash",
 ]
@@ -102,4 +104,23 @@ class ExternalSystemError(MetamorphicError):
 
     The message names the command, its exit status and the end of what it wrote to
     stderr, or the output file that could not be read.
+    """
+
+
+class FolderInUse(MetamorphicError):
+    """Another process is writing the same campaign log or export folder.
+
+    The message names the holder (process id, host, command line). ``path`` is the folder.
+    """
+
+    def __init__(self, message: str, *, path: object = None) -> None:
+        self.path = None if path is None else str(path)
+        super().__init__(f"{self.path}: {message}" if self.path else message)
+
+
+class OtherSystemError(MetamorphicError):
+    """A campaign log holds results of another system under test than the one resuming.
+
+    Resuming would blend the two systems' rates; start afresh, or pass
+    ``resume="any-system"`` (``--mt-resume-any-system``) when the change is intended.
     """

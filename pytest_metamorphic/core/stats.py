@@ -65,6 +65,9 @@ class Recorder:
     source_crashes: int = 0
     relations: dict[str, RelationStats] = field(default_factory=dict)
     violations: list[dict[str, Any]] = field(default_factory=list)
+    # The first call past its time limit: its case's digest and its error. The rest of the
+    # search does not call the system again (engine.py, _Runner.__call__).
+    timed_out: tuple[str, BaseException] | None = None
 
     def relation(self, name: str) -> RelationStats:
         return self.relations.setdefault(name, RelationStats())

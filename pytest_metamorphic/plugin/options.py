@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import pytest
 
@@ -22,7 +23,7 @@ class Options:
     report: Path | None
     campaign: bool = False
     campaign_dir: Path = Path("mt-campaigns")
-    resume: bool = False
+    resume: bool | Literal["any-system"] = False
     artifacts: Path | None = DEFAULT_ARTIFACTS
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
     replay: tuple[Path, ...] = ()
@@ -72,6 +73,13 @@ def add_options(parser: pytest.Parser) -> None:
         action="store_true",
         default=False,
         help="continue interrupted campaigns from their logs instead of starting afresh",
+    )
+    group.addoption(
+        "--mt-resume-any-system",
+        action="store_true",
+        default=False,
+        help="resume even when a log records another system under test (its results and "
+        "this run's are then blended; by default that is an error)",
     )
     group.addoption(
         "--mt-artifacts",
@@ -167,10 +175,14 @@ def parse_options(config: pytest.Config) -> Options:
     )
     if campaign_dir.exists() and not campaign_dir.is_dir():
         raise pytest.UsageError(f"--mt-campaign-dir={campaign_dir} exists and is not a directory")
-    resume = bool(config.getoption("mt_resume"))
+    resume: bool | Literal["any-system"] = bool(config.getoption("mt_resume"))
     campaign = bool(config.getoption("mt_campaign"))
     if resume and not campaign:
         raise pytest.UsageError("--mt-resume only makes sense with --mt-campaign")
+    if config.getoption("mt_resume_any_system"):
+        if not resume:
+            raise pytest.UsageError("--mt-resume-any-system only makes sense with --mt-resume")
+        resume = "any-system"
     dask, dask_batch = _dask_options(config, campaign)
     return Options(
         followups,

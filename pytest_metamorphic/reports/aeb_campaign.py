@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import read_json
 from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.campaign import (
     CampaignCollision,
@@ -138,13 +139,16 @@ def load_campaign_violation(folder: str | Path) -> tuple[dict[str, Any], Scenari
     """The record of a saved violation and its source and follow-up scenarios."""
     path = Path(folder)
     record_path = path / RECORD if path.is_dir() else path
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as error:
-        raise DataError(f"cannot read the record: {error}", path=record_path) from None
+    record = read_json(record_path, what="AEB violation record")
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise DataError("not an AEB campaign violation record", path=record_path)
-    return record, scenario_from_json(record["source"]), scenario_from_json(record["followup"])
+    scenarios = []
+    for key in ("source", "followup"):
+        try:
+            scenarios.append(scenario_from_json(record.get(key)))  # type: ignore[arg-type]
+        except DataError as error:
+            raise DataError(f"{key}: {error}", path=record_path) from None
+    return record, scenarios[0], scenarios[1]
 
 
 def replay_campaign_violation(

@@ -36,6 +36,7 @@ from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import field, read_json
 from pytest_metamorphic.core.perturbation import as_reducible
 from pytest_metamorphic.reports.inputs import (
     RECORD,
@@ -114,26 +115,42 @@ def to_jsonable(value: Any, *, depth: int = 0) -> Any:
 # -- inputs -------------------------------------------------------------------------------------
 
 
-def _decode_params(params: Mapping[str, Any]) -> dict[str, Any]:
-    """Transform parameters with known perturbations rebuilt as objects."""
+def _decode_params(params: Mapping[str, Any], path: Path | None = None) -> dict[str, Any]:
+    """Transform parameters with known perturbations rebuilt as objects.
+
+    Raises
+    ------
+    DataError
+        A perturbation or edit whose saved fields do not rebuild it (naming the parameter).
+    """
+    decoded: dict[str, Any] = {}
+    for key, value in params.items():
+        try:
+            decoded[key] = _decode_param(value)
+        except DataError as error:
+            raise DataError(f"params.{key}: {error}", path=path) from None
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            detail = f"{type(error).__name__}: {error}"[:200]
+            raise DataError(f"params.{key} cannot be rebuilt ({detail})", path=path) from None
+    return decoded
+
+
+def _decode_param(value: Any) -> Any:
     import importlib
 
     import numpy as np
 
-    decoded: dict[str, Any] = {}
-    for key, value in params.items():
-        kind = value.get("type") if isinstance(value, Mapping) else None
-        if kind in _PERTURBATIONS:
-            module, attribute = _PERTURBATIONS[kind]
-            cls = getattr(importlib.import_module(module), kind)
-            array = np.asarray(value[attribute], dtype=np.float32 if attribute == "points" else int)
-            if attribute == "points":
-                array = array.reshape(-1, 4)
-            value = cls(array)
-        elif kind in _EDITS:
-            value = getattr(importlib.import_module(_EDITS[kind]), kind).from_json(value)
-        decoded[key] = value
-    return decoded
+    kind = value.get("type") if isinstance(value, Mapping) else None
+    if kind in _PERTURBATIONS:
+        module, attribute = _PERTURBATIONS[kind]
+        cls = getattr(importlib.import_module(module), kind)
+        array = np.asarray(value[attribute], dtype=np.float32 if attribute == "points" else int)
+        if attribute == "points":
+            array = array.reshape(-1, 4)
+        return cls(array)
+    if kind in _EDITS:
+        return getattr(importlib.import_module(_EDITS[kind]), kind).from_json(value)
+    return value
 
 
 # -- writing ------------------------------------------------------------------------------------
@@ -442,7 +459,8 @@ class Artifact:
         from pytest_metamorphic.core.engine import Followup
 
         value = decode_input(self.record["followup"], self.folder, "followup")
-        return Followup(value, _decode_params(self.record.get("params") or {}))
+        params = _decode_params(self.record.get("params") or {}, self.folder / RECORD)
+        return Followup(value, params)
 
 
 def load_artifact(path: str | os.PathLike[str]) -> Artifact:
@@ -457,12 +475,9 @@ def load_artifact(path: str | os.PathLike[str]) -> Artifact:
     if folder.name == RECORD and folder.is_file():
         folder = folder.parent
     record_path = folder / RECORD
-    if not record_path.is_file():
+    if not record_path.exists():
         raise DataError(f"not an artifact folder: no {RECORD} in it", path=folder)
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as error:
-        raise DataError(f"cannot read the record: {error}", path=record_path) from None
+    record = read_json(record_path, what="artifact record")
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise DataError("not a pytest-metamorphic artifact record", path=record_path)
     if record.get("version") != VERSION:
@@ -471,9 +486,11 @@ def load_artifact(path: str | os.PathLike[str]) -> Artifact:
             f"version {VERSION}",
             path=record_path,
         )
-    for key in ("nodeid", "relation", "source", "followup"):
-        if key not in record:
-            raise DataError(f"the record has no {key!r}", path=record_path)
+    for key in ("nodeid", "relation"):
+        field(record, key, str, where="the record", path=record_path)
+    for key in ("source", "followup"):
+        field(record, key, dict, where="the record", path=record_path)
+    field(record, "params", (dict, type(None)), where="the record", path=record_path, default=None)
     return Artifact(folder, record)
 
 

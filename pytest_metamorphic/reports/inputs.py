@@ -12,6 +12,7 @@ from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.core.files import field, inside
 
 __all__ = [
     "RECORD",
@@ -101,9 +102,18 @@ def encode_input(value: Any, folder: Path, name: str) -> dict[str, Any]:
 
 
 def decode_input(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
-    kind = spec.get("kind")
+    """The input saved as ``spec`` (the record's ``source`` or ``followup``), rebuilt.
+
+    Raises
+    ------
+    DataError
+        A field of the wrong type, a cloud file outside ``folder``, or an input kind that
+        cannot be read back; naming the field and the record.
+    """
+    record = folder / RECORD
+    kind = field(spec, "kind", str, where=name, path=record)
     if kind == "json":
-        return spec["value"]
+        return field(spec, "value", object, where=name, path=record)
     if kind == "aeb_scenario":
         from pytest_metamorphic.reports.aeb_artifacts import decode_scenario
 
@@ -112,41 +122,70 @@ def decode_input(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
         except DataError as error:
             raise DataError(f"{name}: {error}", path=folder / RECORD) from None
     if kind == "frame":
-        from pytest_metamorphic.lidar.io import read_pcd
-        from pytest_metamorphic.lidar.model.frame import Frame
-        from pytest_metamorphic.lidar.model.obstacles import Box
-        from pytest_metamorphic.lidar.roi import ROI
-
-        cloud = read_pcd(folder / spec["cloud"], zeros="keep")
-        roi = spec.get("roi")
-        if roi is not None:
-            if "polygons" not in roi:
-                raise DataError(
-                    f"{name}: the ROI ({roi.get('repr')}) is not an ROI and cannot be restored",
-                    path=folder / RECORD,
-                )
-            roi = ROI.from_polygons(
-                roi["polygons"],
-                cell_size=roi["cell_size"],
-                extend_dist=roi["extend_dist"],
-                raster_range=roi["raster_range"],
-            )
-        boxes = tuple(
-            Box(b["center"], b["size"], b["yaw"], b["label"], b["score"], b["points"])
-            for b in spec.get("boxes", ())
-        )
-        return Frame(
-            cloud,
-            roi=roi,
-            boxes=boxes,
-            pose=spec.get("pose"),
-            source=spec.get("origin", ""),
-            index=spec.get("index", 0),
-        )
+        try:
+            return _decode_frame(spec, folder, name)
+        except DataError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            # e.g. an InvalidArgument of Box or ROI for a value of the right JSON type
+            detail = f"{type(error).__name__}: {error}"[:200]
+            raise DataError(
+                f"{name}: the frame cannot be rebuilt ({detail})", path=record
+            ) from None
     raise DataError(
-        f"the {name} input ({spec.get('type', kind)}: {spec.get('repr', '')}) was not saved in "
+        f"the {name} input ({str(spec.get('type', kind))[:80]}: {str(spec.get('repr', ''))[:80]}) "
+        "was not saved in "
         "a form that can be read back; only LiDAR frames, AEB scenarios and JSON values replay",
         path=folder / RECORD,
+    )
+
+
+def _decode_frame(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
+    from pytest_metamorphic.lidar.io import read_pcd
+    from pytest_metamorphic.lidar.model.frame import Frame
+    from pytest_metamorphic.lidar.model.obstacles import Box
+    from pytest_metamorphic.lidar.roi import ROI
+
+    record = folder / RECORD
+    cloud_file = inside(folder, spec.get("cloud"), field=f"{name}.cloud", path=record)
+    cloud = read_pcd(cloud_file, zeros="keep")
+    roi = field(spec, "roi", (dict, type(None)), where=name, path=record, default=None)
+    if roi is not None:
+        if "polygons" not in roi:
+            raise DataError(
+                f"{name}: the ROI ({str(roi.get('repr'))[:80]}) is not an ROI and cannot be "
+                "restored",
+                path=record,
+            )
+        where = f"{name}.roi"
+        roi = ROI.from_polygons(
+            field(roi, "polygons", list, where=where, path=record),
+            cell_size=field(roi, "cell_size", (int, float), where=where, path=record),
+            extend_dist=field(roi, "extend_dist", (int, float), where=where, path=record),
+            raster_range=field(roi, "raster_range", (int, float), where=where, path=record),
+        )
+    boxes = []
+    for index, box in enumerate(field(spec, "boxes", list, where=name, path=record, default=[])):
+        where = f"{name}.boxes[{index}]"
+        boxes.append(
+            Box(
+                field(box, "center", list, where=where, path=record),
+                field(box, "size", list, where=where, path=record),
+                field(box, "yaw", (int, float), where=where, path=record),
+                field(box, "label", str, where=where, path=record),
+                field(
+                    box, "score", (int, float, type(None)), where=where, path=record, default=None
+                ),
+                field(box, "points", (int, type(None)), where=where, path=record, default=None),
+            )
+        )
+    return Frame(
+        cloud,
+        roi=roi,
+        boxes=tuple(boxes),
+        pose=field(spec, "pose", (list, type(None)), where=name, path=record, default=None),
+        source=field(spec, "origin", str, where=name, path=record, default=""),
+        index=field(spec, "index", int, where=name, path=record, default=0),
     )
 
 

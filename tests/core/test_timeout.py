@@ -123,3 +123,120 @@ def test_a_hanging_input_is_saved_for_replay_like_any_failure(request) -> None:
     with pytest.raises(SystemUnderTestCrash, match="timed out"):
         test_abs()  # the saved case is replayed first
     assert calls[0] < 0
+
+
+def test_a_system_that_always_hangs_is_reported_at_once_not_retried_while_shrinking() -> None:
+    # Before: Hypothesis retried every case during shrinking, 2 s each: 218 s and ~100
+    # threads for a --mt-timeout 2 test of a system that always hangs.
+    import threading
+
+    release = threading.Event()
+    calls: list[int] = []
+
+    def hangs(x: int) -> int:
+        calls.append(x)
+        release.wait(60)
+        return x
+
+    @settings(database=None, max_examples=50)
+    @metamorphic(
+        source=st.integers(0, 1000),
+        followup=lambda x: st.just(x + 1),
+        relation=relations.equal(),
+        timeout=0.3,
+        followups=1,
+    )
+    def test_hanging(x: int) -> int:
+        return hangs(x)
+
+    threads = threading.active_count()
+    began = time.monotonic()
+    try:
+        with recording(Recorder()), pytest.raises(SystemUnderTestCrash, match="timed out"):
+            test_hanging()
+        assert time.monotonic() - began < 10
+        assert len(calls) <= 3  # the first time-out and the final replay, not every shrink
+        assert threading.active_count() - threads <= 3
+    finally:
+        release.set()
+
+
+def test_abandoned_calls_are_bounded() -> None:
+    import threading
+
+    from pytest_metamorphic.core import timeout as limits
+
+    release = threading.Event()
+    try:
+        refused = None
+        for _ in range(limits.MAX_ABANDONED + 2):
+            try:
+                call_with_timeout(release.wait, 60, seconds=0.01)
+            except SystemTimeout as error:
+                if "still running" in str(error):
+                    refused = error
+                    break
+        assert refused is not None and "isolate=True" in str(refused)
+    finally:
+        release.set()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and call_with_timeout_refuses():
+        time.sleep(0.05)
+    assert call_with_timeout(abs, -3, seconds=1.0) == 3  # the released threads ended
+
+
+def call_with_timeout_refuses() -> bool:
+    try:
+        call_with_timeout(abs, 1, seconds=1.0)
+    except SystemTimeout:
+        return True
+    return False
+
+
+def catastrophic(text: str) -> bool:
+    """Holds the GIL for minutes: a backtracking regular expression runs in C."""
+    import re
+
+    return re.match(r"(a+)+$", text) is not None
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="isolation forks")
+def test_isolation_stops_a_call_that_holds_the_gil() -> None:
+    from pytest_metamorphic.core.timeout import call_isolated
+
+    assert call_isolated(catastrophic, "aaa", seconds=10) is True
+    with pytest.raises(ZeroDivisionError):
+        call_isolated(lambda: 1 / 0, seconds=10)
+    began = time.monotonic()
+    with pytest.raises(SystemTimeout, match="process was killed"):
+        call_isolated(catastrophic, "a" * 40 + "b", seconds=1, what="the regex")
+    assert time.monotonic() - began < 10
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="isolation forks")
+def test_metamorphic_isolate_reports_a_gil_holding_hang_as_a_crash() -> None:
+    @settings(database=None, max_examples=3, phases=[Phase.generate])
+    @metamorphic(
+        source=st.just("a" * 40 + "b"),
+        followup=lambda text: st.just(text),
+        relation=relations.equal(),
+        timeout=1,
+        isolate=True,
+        followups=1,
+    )
+    def test_regex(text: str) -> bool:
+        return catastrophic(text)
+
+    began = time.monotonic()
+    with recording(Recorder()), pytest.raises(SystemUnderTestCrash, match="timed out"):
+        test_regex()
+    assert time.monotonic() - began < 15
+
+
+def test_isolate_is_checked() -> None:
+    with pytest.raises(InvalidArgument, match="isolate"):
+        metamorphic(source=st.just(1), followup=st.just, relation=relations.equal(), isolate=1)  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="not with batch"):
+        metamorphic(
+            source=st.just(1), followup=st.just, relation=relations.equal(), isolate=True, batch=2
+        )

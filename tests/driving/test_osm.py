@@ -281,7 +281,7 @@ def test_malformed_files_raise_data_error(tmp_path: Path, body: str, message: st
 
 
 def test_missing_empty_corrupt_and_oversized_files(tmp_path: Path) -> None:
-    with pytest.raises(DataError, match="no such file"):
+    with pytest.raises(DataError, match=r"(?i)no such file"):
         read_osm(tmp_path / "nothing.osm")
     empty = tmp_path / "empty.osm"
     empty.write_bytes(b"")

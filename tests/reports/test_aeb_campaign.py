@@ -60,5 +60,5 @@ def test_artifacts_can_be_switched_off_and_bad_records_are_named(
     (tmp_path / "record.json").write_text(json.dumps({"format": "something else"}))
     with pytest.raises(DataError, match="not an AEB campaign violation record"):
         load_campaign_violation(tmp_path)
-    with pytest.raises(DataError, match="cannot read the record"):
+    with pytest.raises(DataError, match="cannot read AEB violation record"):
         load_campaign_violation(tmp_path / "missing")

@@ -326,7 +326,7 @@ def test_bad_artifact_folders_are_named(tmp_path: Path) -> None:
     with pytest.raises(DataError, match=r"no record\.json"):
         load_artifact(tmp_path)
     (tmp_path / "record.json").write_text("{not json")
-    with pytest.raises(DataError, match="cannot read the record"):
+    with pytest.raises(DataError, match="artifact record is not valid JSON"):
         load_artifact(tmp_path)
     (tmp_path / "record.json").write_text(json.dumps({"format": "something else"}))
     with pytest.raises(DataError, match="not a pytest-metamorphic artifact"):

@@ -18,12 +18,14 @@ from typing import Any
 
 from pytest_metamorphic.core.campaign.results import CampaignResult, SizeCounts, tally
 from pytest_metamorphic.core.campaign.spec import Campaign
-from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.errors import InvalidArgument, OtherSystemError
+from pytest_metamorphic.core.locks import exclusive
 
 __all__ = [
     "LogFile",
     "ShardLogs",
     "as_logs",
+    "logged_digest",
     "read_campaign_log",
     "read_log",
     "set_aside",
@@ -33,7 +35,19 @@ __all__ = [
 SYNC_SECONDS = 1.0
 
 
-def read_log(path: Path, header: dict[str, Any]) -> Iterator[dict[str, Any]]:
+def read_log(
+    path: Path, header: dict[str, Any], system: dict[str, str] | None = None
+) -> Iterator[dict[str, Any]]:
+    """The records of a log whose header is ``header`` (the campaign's).
+
+    Raises
+    ------
+    InvalidArgument
+        The log belongs to another campaign (name, relation, seed, sizes, ...).
+    OtherSystemError
+        ``system`` is given and the log records another system under test (logs written
+        before 0.5 record none and are accepted).
+    """
     with path.open(encoding="utf-8") as handle:
         lines = handle.read().splitlines()
     if not lines:
@@ -42,10 +56,20 @@ def read_log(path: Path, header: dict[str, Any]) -> Iterator[dict[str, Any]]:
         found = json.loads(lines[0])
     except json.JSONDecodeError:
         raise InvalidArgument(f"{path}: first line is not a campaign header") from None
+    if not isinstance(found, dict):
+        raise InvalidArgument(f"{path}: first line is not a campaign header")
+    logged_system = found.pop("system", None)
     if found != header:
         raise InvalidArgument(
             f"{path} holds results of a different campaign ({found}); expected {header}. "
             "Use another log path or the same seed and parameters."
+        )
+    if system is not None and logged_system is not None and logged_system != system:
+        raise OtherSystemError(
+            f"{path} holds results of another system under test ({_named(logged_system)}); "
+            f"this run's is {_named(system)}. Resuming would blend the two systems' rates: "
+            "use another log, run without resume (the log is set aside, not lost), or pass "
+            'resume="any-system" (--mt-resume-any-system) if the change is intended.'
         )
     for number, line in enumerate(lines[1:], start=2):
         try:
@@ -85,6 +109,24 @@ def read_campaign_log(
     return as_logs(log).read(campaign, indices, keep_examples=keep_examples)
 
 
+def _named(system: Any) -> str:
+    if not isinstance(system, dict):
+        return repr(system)[:200]
+    return f"{system.get('name')!s:.120} [{system.get('fingerprint')}]"
+
+
+def logged_digest(logs: Any, campaign: Campaign, index: int) -> str | None:
+    """The output digest a log recorded for source ``index`` (None: not logged, or a log
+    written before digests were)."""
+    for path in logs.paths():
+        if not path.exists() or not path.stat().st_size:
+            continue
+        for record in read_log(path, campaign.header()):
+            if record.get("source") == index and "digest" in record:
+                return str(record["digest"])
+    return None
+
+
 def _empty_result(campaign: Campaign, keep_examples: int) -> CampaignResult:
     return CampaignResult(
         campaign.header(),
@@ -94,11 +136,15 @@ def _empty_result(campaign: Campaign, keep_examples: int) -> CampaignResult:
 
 
 def _tally_file(
-    result: CampaignResult, path: Path, header: dict[str, Any], wanted: Container[int]
+    result: CampaignResult,
+    path: Path,
+    header: dict[str, Any],
+    wanted: Container[int],
+    system: dict[str, str] | None = None,
 ) -> None:
     if not path.exists() or not path.stat().st_size:
         return
-    for record in read_log(path, header):
+    for record in read_log(path, header, system):
         if record["source"] in wanted and record["source"] not in result.sources_done:
             tally(result, record)
 
@@ -170,12 +216,21 @@ class LogFile:
         return [self.path]
 
     def read(
-        self, campaign: Campaign, indices: Collection[int], *, keep_examples: int = 20
+        self,
+        campaign: Campaign,
+        indices: Collection[int],
+        *,
+        keep_examples: int = 20,
+        system: dict[str, str] | None = None,
     ) -> CampaignResult:
         result = _empty_result(campaign, keep_examples)
-        _tally_file(result, self.path, campaign.header(), indices)
+        _tally_file(result, self.path, campaign.header(), indices, system)
         result._trim_examples()
         return result
+
+    def lock(self, indices: Iterable[int]) -> contextlib.AbstractContextManager[None]:
+        """One writer at a time for this log (:mod:`pytest_metamorphic.core.locks`)."""
+        return exclusive(_lock_path(self.path), what=f"campaign log {self.path.name}")
 
     def set_aside(self, indices: Iterable[int]) -> None:
         if self.path.exists() and self.path.stat().st_size:
@@ -214,7 +269,12 @@ class ShardLogs:
         return [self.path(shard) for shard in range(self.shards)]
 
     def read(
-        self, campaign: Campaign, indices: Collection[int], *, keep_examples: int = 20
+        self,
+        campaign: Campaign,
+        indices: Collection[int],
+        *,
+        keep_examples: int = 20,
+        system: dict[str, str] | None = None,
     ) -> CampaignResult:
         result = _empty_result(campaign, keep_examples)
         indices = indices if isinstance(indices, (range, set, frozenset)) else set(indices)
@@ -222,9 +282,21 @@ class ShardLogs:
             mine = shard_indices(campaign.sources, shard, self.shards)
             wanted = [index for index in mine if index in indices]
             if wanted:
-                _tally_file(result, self.path(shard), campaign.header(), set(wanted))
+                _tally_file(result, self.path(shard), campaign.header(), set(wanted), system)
         result._trim_examples()
         return result
+
+    @contextmanager
+    def lock(self, indices: Iterable[int]) -> Iterator[None]:
+        """One writer at a time for each shard log holding ``indices`` (pytest-xdist
+        workers write different shards of one folder side by side)."""
+        with contextlib.ExitStack() as stack:
+            for shard in sorted({index % self.shards for index in indices}):
+                path = self.path(shard)
+                stack.enter_context(
+                    exclusive(_lock_path(path), what=f"campaign log {self.folder}/{path.name}")
+                )
+            yield
 
     def set_aside(self, indices: Iterable[int]) -> None:
         """Rename aside the logs of the shards holding ``indices`` (another shard's log
@@ -257,9 +329,17 @@ class _NoLog:
         return []
 
     def read(
-        self, campaign: Campaign, indices: Collection[int], *, keep_examples: int = 20
+        self,
+        campaign: Campaign,
+        indices: Collection[int],
+        *,
+        keep_examples: int = 20,
+        system: dict[str, str] | None = None,
     ) -> CampaignResult:
         return _empty_result(campaign, keep_examples)
+
+    def lock(self, indices: Iterable[int]) -> contextlib.AbstractContextManager[None]:
+        return contextlib.nullcontext()
 
     def set_aside(self, indices: Iterable[int]) -> None:
         pass
@@ -267,6 +347,10 @@ class _NoLog:
     @contextmanager
     def open(self, header: dict[str, Any]) -> Iterator[Callable[[dict[str, Any]], None]]:
         yield lambda record: None
+
+
+def _lock_path(log: Path) -> Path:
+    return log.with_name(f".{log.name}.lock")
 
 
 LogLike = Path | str | os.PathLike | LogFile | ShardLogs | None

@@ -79,8 +79,10 @@ class CampaignResult:
 
     @property
     def sut_calls_saved(self) -> int:
-        """SUT runs caching avoided: without it every pair would re-run its source."""
-        return sum(counts.pairs for counts in self.sizes.values()) - len(self.sources_done)
+        """SUT runs caching avoided: without it every pair would re-run its source (a
+        source that crashed has no pairs, and saved nothing)."""
+        pairs = sum(counts.pairs for counts in self.sizes.values())
+        return max(pairs - (len(self.sources_done) - self.source_crashes), 0)
 
     def merge(self, other: CampaignResult) -> None:
         if other.header != self.header:

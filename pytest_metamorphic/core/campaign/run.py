@@ -6,16 +6,42 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
-from pytest_metamorphic.core.campaign.log import LogLike, as_logs, shard_indices
+from pytest_metamorphic.core.batching import SystemCalls
+from pytest_metamorphic.core.campaign.identity import output_digest
+from pytest_metamorphic.core.campaign.log import LogLike, as_logs, logged_digest, shard_indices
 from pytest_metamorphic.core.campaign.results import CampaignResult, tally
 from pytest_metamorphic.core.campaign.source import run_source
-from pytest_metamorphic.core.campaign.spec import Campaign
-from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.campaign.spec import Campaign, draw_followup
+from pytest_metamorphic.core.errors import InvalidArgument, OtherSystemError
 from pytest_metamorphic.core.timeout import check_timeout
 
 __all__ = ["CampaignProgress", "InProcess", "run_campaign"]
+
+
+def _check_same_outputs(campaign: Campaign, logs: Any, index: int, timeout: float | None) -> None:
+    """Re-run the system on one logged source and its first follow-up and compare the
+    outputs with the log's digest: a system changed in place (a model retrained under the
+    same name and parameters) is not resumed as if it were the same."""
+    logged = logged_digest(logs, campaign, index)
+    if logged is None:
+        return  # a log of 0.4 or earlier, or a source whose first pair crashed
+    source = campaign.source(campaign.source_rng(index), index)
+    followup, _ = draw_followup(campaign, source, index, 0, 0)
+    calls = SystemCalls(campaign.system, timeout)
+    outcomes = calls.run([source, followup], [f"source {index}", f"source {index}, pair 0"])
+    errors = [error for _, error in outcomes if error is not None]
+    now = output_digest(tuple(output for output, _ in outcomes))
+    if not errors and now == logged:
+        return
+    gives = "crashes" if errors else f"gives outputs {now}"
+    raise OtherSystemError(
+        f"the campaign log records outputs {logged} of the system on source {index} and its "
+        f"first follow-up; the system now {gives}. Resuming would blend two systems' results "
+        "(or the system is not deterministic): use another log, run without resume, or pass "
+        'resume="any-system" (--mt-resume-any-system) if the change is intended.'
+    )
 
 
 @dataclass(frozen=True)
@@ -56,7 +82,7 @@ def run_campaign(
     campaign: Campaign,
     *,
     log: LogLike = None,
-    resume: bool = False,
+    resume: bool | Literal["any-system"] = False,
     shard: int = 0,
     shards: int = 1,
     keep_examples: int = 20,
@@ -73,9 +99,16 @@ def run_campaign(
         JSONL file: a header line, then one record per finished source, flushed as it
         comes; or a :class:`~pytest_metamorphic.core.campaign.log.ShardLogs` folder (one
         file per shard, the pytest plugin's layout). An existing log is renamed aside
-        unless ``resume`` is true.
-    resume : bool
+        unless ``resume`` is true. While the run writes it, the log is locked: a second
+        run on it fails at once with
+        :class:`~pytest_metamorphic.core.errors.FolderInUse`, naming the first.
+    resume : bool or "any-system"
         Continue the run recorded in ``log``: finished sources are read back, not redone.
+        The log must be of the same system under test
+        (:mod:`~pytest_metamorphic.core.campaign.identity`: its name and fingerprint, and
+        its output on the first logged source, re-run once), else
+        :class:`~pytest_metamorphic.core.errors.OtherSystemError`; ``"any-system"``
+        resumes anyway.
     shard, shards : int
         Run only the sources ``shard, shard + shards, ...``; results of all shards merge
         (:meth:`CampaignResult.merge`) into exactly the one-process result.
@@ -97,6 +130,9 @@ def run_campaign(
     timeout = check_timeout(timeout)
     if not isinstance(campaign, Campaign):
         raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
+    if resume not in (True, False, "any-system"):
+        raise InvalidArgument(f"resume={resume!r} must be True, False or 'any-system'")
+    system = campaign.system_identity()
     logs = as_logs(log)
     indices = shard_indices(campaign.sources, shard, shards)
     if cluster is None:
@@ -108,15 +144,18 @@ def run_campaign(
 
         engine = DaskEngine(cluster, batch_size=batch_size)
     # The engine checks the campaign (can it be sent?) before the log is touched.
-    with engine.session(campaign, timeout) as session:
+    with engine.session(campaign, timeout) as session, logs.lock(indices):
         if not resume:
             logs.set_aside(indices)
-        result = logs.read(campaign, indices, keep_examples=keep_examples)
+        checked = system if resume is True else None
+        result = logs.read(campaign, indices, keep_examples=keep_examples, system=checked)
+        if checked is not None and result.sources_done:
+            _check_same_outputs(campaign, logs, min(result.sources_done), timeout)
         resumed = len(result.sources_done)
         todo = [index for index in indices if index not in result.sources_done]
         started = time.monotonic()
         ran = failed = 0
-        with logs.open(campaign.header()) as write:
+        with logs.open({**campaign.header(), "system": system}) as write:
             for record, in_flight in session.records(todo):
                 write(record)
                 tally(result, record)

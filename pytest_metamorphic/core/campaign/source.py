@@ -7,6 +7,7 @@ from collections.abc import Callable
 from typing import Any
 
 from pytest_metamorphic.core.batching import SystemCalls
+from pytest_metamorphic.core.campaign.identity import output_digest
 from pytest_metamorphic.core.campaign.spec import Campaign, draw_followup
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.relations import CheckContext, unjudged_changes
@@ -92,6 +93,9 @@ def run_source(campaign: Campaign, index: int, timeout: float | None = None) -> 
             if error is not None:
                 pair["crash"] = f"{type(error).__name__}: {error}"
                 continue
+            if len(record["pairs"]) == 1:
+                # What a resume re-runs to tell the same system from another (identity.py).
+                record["digest"] = output_digest((source_output, followup_output))
             source = (source_input, source_output, n_source, source_categories)
             _judge(campaign, pair, source, item, followup_output, f)
     return record

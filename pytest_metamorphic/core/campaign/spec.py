@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from pytest_metamorphic.core.campaign.identity import system_identity
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import Relation
 
@@ -47,6 +48,10 @@ class Campaign:
     size_label : str
         What a size is, as the reports name it (default ``"n"``, the paper's noise points;
         e.g. ``"dead lasers"``, ``"visibility m"``).
+    system_name : str, optional
+        What the log calls the system under test (default: its qualified name). With its
+        fingerprint it keeps a resumed run from blending two systems' results
+        (:mod:`pytest_metamorphic.core.campaign.identity`).
     """
 
     name: str
@@ -61,6 +66,7 @@ class Campaign:
     category: Callable[[Any], str] | None = None
     counted: Callable[[Any, Any], Any] | None = None
     size_label: str = "n"
+    system_name: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -74,6 +80,10 @@ class Campaign:
                 raise InvalidArgument(f"{argument}={value!r} must be callable or None")
         if not isinstance(self.size_label, str) or not self.size_label.strip():
             raise InvalidArgument(f"size_label={self.size_label!r} must be a non-empty string")
+        if self.system_name is not None and (
+            not isinstance(self.system_name, str) or not self.system_name.strip()
+        ):
+            raise InvalidArgument(f"system_name={self.system_name!r} must be a non-empty string")
         if not isinstance(self.relation, Relation):
             raise InvalidArgument(f"relation={self.relation!r} must be a Relation")
         sizes = tuple(self.sizes)
@@ -100,6 +110,10 @@ class Campaign:
             # Only when it says more than "n": logs written before it existed still resume.
             **({"size_label": self.size_label} if self.size_label != "n" else {}),
         }
+
+    def system_identity(self) -> dict[str, str]:
+        """The system under test's name and fingerprint, recorded in the log's header."""
+        return system_identity(self.system, self.system_name)
 
     def source_rng(self, index: int) -> np.random.Generator:
         return np.random.default_rng([self.seed, index])

@@ -9,6 +9,7 @@ naming the file. Decompressed input is capped (``max_bytes``) against bz2 bombs.
 from __future__ import annotations
 
 import bz2
+import contextlib
 import math
 import xml.parsers.expat
 from collections.abc import Iterator, Mapping
@@ -20,12 +21,16 @@ from typing import IO, Any
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import open_regular
 from pytest_metamorphic.driving.osm.projection import LocalProjection
 
 __all__ = ["OsmData", "OsmNode", "OsmWay", "read_osm"]
 
 _CHUNK = 1 << 20
 _DEFAULT_MAX_BYTES = 512 << 20
+# Parsed, a node takes about 370 bytes (its dataclass, tags and index entry) and a way's
+# node reference about 30: a million elements is about 400 MB of memory.
+_DEFAULT_MAX_ELEMENTS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -80,9 +85,13 @@ class OsmData:
 class _Handler:
     """expat callbacks building :class:`OsmData`; refuses anything entity-related."""
 
-    def __init__(self, path: str, parser: xml.parsers.expat.XMLParserType) -> None:
+    def __init__(
+        self, path: str, parser: xml.parsers.expat.XMLParserType, max_elements: int
+    ) -> None:
         self.path = path
         self.parser = parser
+        self.max_elements = max_elements
+        self.elements = 0
         self.nodes: dict[int, OsmNode] = {}
         self.ways: list[OsmWay] = []
         self.bounds: tuple[float, float, float, float] | None = None
@@ -175,6 +184,14 @@ class _Handler:
             self.relation_count += 1
             return
         element_id = self._int(attrs, "id", name)
+        self.elements += 1 + len(self.current_refs) // 10 + len(self.current_tags)
+        if self.elements > self.max_elements:
+            raise DataError(
+                f"holds more than max_elements={self.max_elements} map elements (nodes, ways, "
+                "tags; about 400 bytes of memory each); cut the extract to the area the "
+                "scenarios need, or pass a larger max_elements if it is trusted and fits",
+                path=self.path,
+            )
         tags = MappingProxyType(self.current_tags)
         if name == "node":
             lat = self._float(attrs, "lat", "node")
@@ -188,12 +205,16 @@ class _Handler:
             self.ways.append(OsmWay(element_id, tuple(self.current_refs), tags))
 
 
-def _open(path: Path) -> IO[bytes]:
-    with open(path, "rb") as probe:
-        magic = probe.read(3)
-    if path.suffix == ".bz2" or magic == b"BZh":
-        return bz2.open(path, "rb")
-    return open(path, "rb")
+@contextlib.contextmanager
+def _open(path: Path) -> Iterator[IO[bytes]]:
+    with open_regular(path, what="OSM file") as handle:  # unreadable, a FIFO: a DataError
+        magic = handle.read(3)
+        handle.seek(0)
+        if path.suffix == ".bz2" or magic == b"BZh":
+            with bz2.BZ2File(handle, "rb") as unpacked:  # closes only itself, not handle
+                yield unpacked
+        else:
+            yield handle
 
 
 def _chunks(stream: IO[bytes], path: Path, max_bytes: int) -> Iterator[bytes]:
@@ -215,7 +236,12 @@ def _chunks(stream: IO[bytes], path: Path, max_bytes: int) -> Iterator[bytes]:
         yield chunk
 
 
-def read_osm(path: str | Path, *, max_bytes: int = _DEFAULT_MAX_BYTES) -> OsmData:
+def read_osm(
+    path: str | Path,
+    *,
+    max_bytes: int = _DEFAULT_MAX_BYTES,
+    max_elements: int = _DEFAULT_MAX_ELEMENTS,
+) -> OsmData:
     """Parse an OSM XML file (plain or bz2-compressed) with a hardened expat parser.
 
     Parameters
@@ -224,6 +250,10 @@ def read_osm(path: str | Path, *, max_bytes: int = _DEFAULT_MAX_BYTES) -> OsmDat
         ``.osm`` or ``.osm.bz2`` (bz2 is also recognised by its magic bytes).
     max_bytes : int
         Refuse files larger than this once decompressed (default 512 MiB).
+    max_elements : int
+        Refuse extracts of more map elements than this (nodes, ways, tags, a tenth of
+        each way's node references; default 1,000,000, about 400 MB parsed): an extract
+        of a city district has tens of thousands.
 
     Raises
     ------
@@ -231,13 +261,12 @@ def read_osm(path: str | Path, *, max_bytes: int = _DEFAULT_MAX_BYTES) -> OsmDat
         The file is missing, not OSM XML, malformed, or contains a DOCTYPE, an entity
         declaration or an external entity reference. The message names the file and line.
     """
-    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
-        raise InvalidArgument(f"max_bytes={max_bytes!r} must be a positive int")
+    for name, value in (("max_bytes", max_bytes), ("max_elements", max_elements)):
+        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            raise InvalidArgument(f"{name}={value!r} must be a positive int")
     path = Path(path)
-    if not path.is_file():
-        raise DataError("no such file", path=path)
     parser = xml.parsers.expat.ParserCreate()
-    handler = _Handler(str(path), parser)
+    handler = _Handler(str(path), parser, max_elements)
     parser.SetParamEntityParsing(xml.parsers.expat.XML_PARAM_ENTITY_PARSING_NEVER)
     parser.StartDoctypeDeclHandler = handler.doctype
     parser.EntityDeclHandler = handler.entity_decl

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Literal
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import open_regular
 from pytest_metamorphic.lidar.io._common import ZerosPolicy, check_policies
 from pytest_metamorphic.lidar.io.apollo import (
     ApolloPose,
@@ -98,11 +99,8 @@ def detect_format(path: str | os.PathLike[str]) -> CloudFormat:
         return "bag"
     if suffix in (".bin", ".pcd"):
         return suffix[1:]  # type: ignore[return-value]
-    try:
-        with path.open("rb") as handle:
-            head = handle.read(1024)
-    except OSError as error:
-        raise DataError(f"cannot read: {error.strerror or error}", path=path) from None
+    with open_regular(path, what="recording") as handle:
+        head = handle.read(1024)
     if head.startswith((b"#ROSBAG", b"\x89MCAP")) or head.startswith(b"SQLite format 3"):
         raise DataError(
             "looks like a ROS bag; rename it with its suffix (.bag, .mcap, .db3) so the "

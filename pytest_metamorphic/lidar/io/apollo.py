@@ -9,13 +9,17 @@
 * ``*.pose``: ``frame_id timestamp x y z qx qy qz qw`` (UTM metres; Hamilton
   quaternion, scalar last).
 
-Declared counts are checked against what the file holds before anything is allocated.
+Files are read a line at a time and rows parsed into blocks of numbers, so memory follows
+what is parsed (a few bytes per value), never the file's size, and a declared count the
+file does not hold allocates nothing.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.core.files import open_regular
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 
 __all__ = [
@@ -33,25 +38,74 @@ __all__ = [
     "read_apollo_roi_points",
 ]
 
-MAX_TEXT_BYTES = 64 << 20
+MAX_LINE_BYTES = 8 << 20
+"""The longest line read (a cluster of about 200,000 points); files are read a line at a
+time, so memory follows what is parsed, not the file's size."""
+_CHUNK = 4096  # rows parsed into one block before it is kept
 
 
-def _lines(path: str | os.PathLike[str], what: str) -> tuple[Path, list[tuple[int, list[str]]]]:
-    """Non-empty lines as (line number, tokens)."""
-    path = Path(path)
-    try:
-        size = path.stat().st_size
-        if size > MAX_TEXT_BYTES:
+def _rows(path: Path, what: str) -> Iterator[tuple[int, list[str]]]:
+    """Non-empty lines as (line number, tokens), read one at a time."""
+    with open_regular(path, what=what) as handle:
+        number = 0
+        while True:
+            raw = handle.readline(MAX_LINE_BYTES + 1)
+            if not raw:
+                return
+            number += 1
+            if len(raw) > MAX_LINE_BYTES:
+                raise DataError(
+                    f"line {number} is longer than {MAX_LINE_BYTES} bytes; not an Apollo {what}",
+                    path=path,
+                )
+            try:
+                tokens = raw.decode("utf-8").split()
+            except UnicodeDecodeError as error:
+                raise DataError(
+                    f"{what} is not text (line {number}, byte {error.start})", path=path
+                ) from None
+            if tokens:
+                yield number, tokens
+
+
+def _block_rows(
+    rows: Iterator[tuple[int, list[str]]],
+    count: int,
+    width: int,
+    path: Path,
+    *,
+    row: str = "",
+    expected: str = "",
+) -> tuple[NDArray[np.float64], list[int]]:
+    """Up to ``count`` rows of ``width`` numbers as a (k, width) array (k < count only when
+    the file ends), with their line numbers; parsed in blocks, so a declared count that
+    the file does not hold allocates nothing."""
+    blocks: list[NDArray[np.float64]] = []
+    numbers: list[int] = []
+    if count <= 0:
+        return np.empty((0, width), np.float64), numbers
+    block = np.empty((min(count, _CHUNK), width), np.float64)
+    filled = 0
+    for number, tokens in rows:
+        if len(tokens) != width:
+            name = f"{row} has " if row else ""
             raise DataError(
-                f"{what} is {size} bytes, over the {MAX_TEXT_BYTES}-byte limit", path=path
+                f"line {number}: {name}{len(tokens)} values, expected {expected or width}",
+                path=path,
             )
-        text = path.read_bytes().decode("utf-8")
-    except OSError as error:
-        raise DataError(f"cannot read {what}: {error.strerror or error}", path=path) from None
-    except UnicodeDecodeError as error:
-        raise DataError(f"{what} is not text (byte {error.start})", path=path) from None
-    lines = [(number, line.split()) for number, line in enumerate(text.splitlines(), 1)]
-    return path, [(number, tokens) for number, tokens in lines if tokens]
+        block[filled] = _floats(tokens, number, path)
+        numbers.append(number)
+        filled += 1
+        if filled == len(block):
+            blocks.append(block)
+            filled = 0
+            if len(numbers) == count:
+                break
+            block = np.empty((min(count - len(numbers), _CHUNK), width), np.float64)
+    if filled:
+        blocks.append(block[:filled])
+    values = np.concatenate(blocks) if blocks else np.empty((0, width), np.float64)
+    return values, numbers
 
 
 def _count(tokens: list[str], number: int, what: str, path: Path) -> int:
@@ -84,44 +138,46 @@ def read_apollo_poly(path: str | os.PathLike[str]) -> list[NDArray[np.float64]]:
     list of (k, 3) or (k, 2) float64
       One vertex array per polygon (columns as in the file), k >= 3.
     """
-    path, lines = _lines(path, "polygon file")
-    if not lines:
+    path = Path(path)
+    rows = _rows(path, "polygon file")
+    first = next(rows, None)
+    if first is None:
         raise DataError("empty polygon file", path=path)
-    number, tokens = lines[0]
-    polygons_declared = _count(tokens, number, "polygon count", path)
+    declared = _count(first[1], first[0], "polygon count", path)
     polygons: list[NDArray[np.float64]] = []
-    cursor = 1
-    for polygon in range(polygons_declared):
-        if cursor >= len(lines):
-            raise DataError(
-                f"declares {polygons_declared} polygons but ends after {polygon}", path=path
-            )
-        number, tokens = lines[cursor]
+    for polygon in range(declared):
+        head = next(rows, None)
+        if head is None:
+            raise DataError(f"declares {declared} polygons but ends after {polygon}", path=path)
+        number, tokens = head
         vertices = _count(tokens, number, f"vertex count of polygon {polygon}", path)
         if vertices < 3:
             raise DataError(f"line {number}: polygon {polygon} has {vertices} vertices", path=path)
-        rows = lines[cursor + 1 : cursor + 1 + vertices]
-        if len(rows) < vertices:
+        start = next(rows, None)
+        width = 0 if start is None else len(start[1])
+        if start is not None and width not in (2, 3):
             raise DataError(
-                f"polygon {polygon} declares {vertices} vertices but the file ends after "
-                f"{len(rows)}",
+                f"line {start[0]}: vertex of polygon {polygon} has {width} values, expected 2 or 3",
                 path=path,
             )
-        width = len(rows[0][1])
-        for row_number, row in rows:
-            if len(row) not in (2, 3) or len(row) != width:
-                raise DataError(
-                    f"line {row_number}: vertex of polygon {polygon} has {len(row)} values, "
-                    f"expected {width if width in (2, 3) else '2 or 3'}",
-                    path=path,
-                )
-        polygons.append(np.stack([_floats(row, row_number, path) for row_number, row in rows]))
-        cursor += 1 + vertices
-    if cursor != len(lines):
+        values, numbers = _block_rows(
+            itertools.chain([start] if start else [], rows),
+            vertices,
+            width or 3,
+            path,
+            row=f"vertex of polygon {polygon}",
+        )
+        if len(numbers) < vertices:
+            raise DataError(
+                f"polygon {polygon} declares {vertices} vertices but the file ends after "
+                f"{len(numbers)}",
+                path=path,
+            )
+        polygons.append(values)
+    extra = sum(1 for _ in rows)
+    if extra:
         raise DataError(
-            f"{len(lines) - cursor} unexpected line(s) after the {polygons_declared} declared "
-            f"polygons (line {lines[cursor][0]})",
-            path=path,
+            f"{extra} unexpected line(s) after the {declared} declared polygons", path=path
         )
     return polygons
 
@@ -144,34 +200,33 @@ def read_apollo_roi_points(
     labels : (n,) int8
       +1 inside the ROI, -1 outside.
     """
-    path, lines = _lines(path, "ROI point file")
-    if not lines:
+    path = Path(path)
+    rows = _rows(path, "ROI point file")
+    first = next(rows, None)
+    if first is None:
         raise DataError("empty ROI point file", path=path)
-    number, tokens = lines[0]
-    declared = _count(tokens, number, "point count", path)
-    rows = lines[1:]
-    if len(rows) > declared or (len(rows) < declared and not allow_truncated):
-        hint = "; pass allow_truncated=True for a prefix" if len(rows) < declared else ""
-        raise DataError(f"declares {declared} points but holds {len(rows)}{hint}", path=path)
-    values = np.empty((len(rows), 3), np.float64)
-    for index, (row_number, row) in enumerate(rows):
-        if len(row) != 3:
-            raise DataError(f"line {row_number}: {len(row)} values, expected x y label", path=path)
-        values[index] = _floats(row, row_number, path)
+    declared = _count(first[1], first[0], "point count", path)
+    values, numbers = _block_rows(rows, declared, 3, path, expected="x y label")
+    held = len(numbers) + sum(1 for _ in rows)
+    if held > declared or (held < declared and not allow_truncated):
+        hint = "; pass allow_truncated=True for a prefix" if held < declared else ""
+        raise DataError(f"declares {declared} points but holds {held}{hint}", path=path)
     labels = values[:, 2]
-    if not np.isin(labels, (-1.0, 1.0)).all():
-        bad = int(np.flatnonzero(~np.isin(labels, (-1.0, 1.0)))[0])
+    valid = np.isin(labels, (-1.0, 1.0))
+    if not valid.all():
+        bad = int(np.flatnonzero(~valid)[0])
         raise DataError(
-            f"line {rows[bad][0]}: label {rows[bad][1][2]!r} is not +1 or -1", path=path
+            f"line {numbers[bad]}: label {format(labels[bad], 'g')!r} is not +1 or -1",
+            path=path,
         )
     return values[:, :2].copy(), labels.astype(np.int8)
 
 
 def read_apollo_clusters(path: str | os.PathLike[str]) -> list[PointCloud]:
     """Read an object-builder cluster file: one cloud per line (intensity 0-255)."""
-    path, lines = _lines(path, "cluster file")
+    path = Path(path)
     clouds = []
-    for number, tokens in lines:
+    for number, tokens in _rows(path, "cluster file"):
         declared = _count(tokens[:1], number, "point count", path)
         if len(tokens) != 1 + 4 * declared:
             raise DataError(
@@ -222,9 +277,12 @@ class ApolloPose:
 
 def read_apollo_pose(path: str | os.PathLike[str]) -> ApolloPose:
     """Read an Apollo ``.pose`` file (one line of 9 values)."""
-    path, lines = _lines(path, "pose file")
+    path = Path(path)
+    lines = list(itertools.islice(_rows(path, "pose file"), 2))
     if len(lines) != 1 or len(lines[0][1]) != 9:
-        got = f"{len(lines)} lines" if len(lines) != 1 else f"{len(lines[0][1])} values"
+        got = "more lines" if len(lines) > 1 else "no line"
+        if len(lines) == 1:
+            got = f"{len(lines[0][1])} values"
         raise DataError(
             f"expected one line 'frame_id timestamp x y z qx qy qz qw', got {got}", path=path
         )

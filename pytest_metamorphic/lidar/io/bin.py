@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import open_regular
 from pytest_metamorphic.lidar.io._common import replacing
 from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 
@@ -73,21 +74,19 @@ def read_bin(
             f"field_names={tuple(field_names)!r} must name the {columns - 4} column(s) after "
             "intensity"
         )
-    try:
-        size = path.stat().st_size
-    except OSError as error:
-        raise DataError(f"cannot read .bin file: {error.strerror or error}", path=path) from None
-    row = 4 * columns
-    if size % row:
-        hint = ""
-        for other in (4, 5):
-            if other != columns and size % (4 * other) == 0:
-                hint = f" (it would fit {other} columns: pass columns={other})"
-        raise DataError(
-            f"size {size} bytes is not a multiple of {row} ({columns} float32 columns){hint}",
-            path=path,
-        )
-    values = np.fromfile(path, "<f4").reshape(-1, columns)
+    with open_regular(path, what=".bin file") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        row = 4 * columns
+        if size % row:
+            hint = ""
+            for other in (4, 5):
+                if other != columns and size % (4 * other) == 0:
+                    hint = f" (it would fit {other} columns: pass columns={other})"
+            raise DataError(
+                f"size {size} bytes is not a multiple of {row} ({columns} float32 columns){hint}",
+                path=path,
+            )
+        values = np.fromfile(handle, "<f4").reshape(-1, columns)
     if columns == 4:
         points = values
     else:

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.core.files import open_regular
 from pytest_metamorphic.lidar.model.obstacles import Box, Label
 
 __all__ = [
@@ -108,11 +109,8 @@ class KittiObject:
 
 
 def _read_text(path: Path, what: str) -> str:
-    try:
-        with path.open("rb") as handle:
-            raw = handle.read(MAX_TEXT_BYTES + 1)
-    except OSError as error:
-        raise DataError(f"cannot read {what}: {error.strerror or error}", path=path) from None
+    with open_regular(path, what=what) as handle:
+        raw = handle.read(MAX_TEXT_BYTES + 1)
     if len(raw) > MAX_TEXT_BYTES:
         raise DataError(f"{what} is over {MAX_TEXT_BYTES} bytes; not a KITTI text file", path=path)
     try:

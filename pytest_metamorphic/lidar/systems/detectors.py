@@ -48,6 +48,7 @@ __all__ = [
     "boxes_to_array",
     "from_mmdet3d",
     "from_openpcdet",
+    "label_mapping",
     "read_kitti_predictions",
 ]
 
@@ -86,7 +87,9 @@ def _array(value: Any, name: str, *, dtype: Any = np.float64) -> NDArray[Any]:
         raise InvalidArgument(f"{name} cannot be read as numbers: {error}") from None
 
 
-def _mapping(label_map: Mapping[str, Label] | None) -> Mapping[str, Label]:
+def label_mapping(label_map: Mapping[str, Label] | None) -> Mapping[str, Label]:
+    """Class name -> label: :data:`CLASS_LABELS` with ``label_map``'s entries on top
+    (checked: every value one of the project's labels)."""
     if label_map is None:
         return CLASS_LABELS
     if not isinstance(label_map, Mapping):
@@ -200,7 +203,7 @@ def from_openpcdet(
     rows, indices, scores = _unpack(
         (pred_boxes, pred_labels, pred_scores), ("pred_boxes", "pred_labels", "pred_scores"), 1
     )
-    labels = _labels(indices, class_names, 1, "pred_labels", _mapping(label_map))
+    labels = _labels(indices, class_names, 1, "pred_labels", label_mapping(label_map))
     return _boxes(rows, labels, scores, min_score, "pred_boxes")
 
 
@@ -255,7 +258,7 @@ def from_mmdet3d(
     rows[:, 0] += along * np.cos(rows[:, 6]) - across * np.sin(rows[:, 6])
     rows[:, 1] += along * np.sin(rows[:, 6]) + across * np.cos(rows[:, 6])
     rows[:, 2] += shift[2] * rows[:, 5]
-    labels = _labels(indices, class_names, 0, "labels_3d", _mapping(label_map))
+    labels = _labels(indices, class_names, 0, "labels_3d", label_mapping(label_map))
     return _boxes(rows, labels, scores, min_score, "bboxes_3d")
 
 

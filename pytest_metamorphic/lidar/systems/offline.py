@@ -27,6 +27,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -36,6 +37,8 @@ import numpy as np
 
 from pytest_metamorphic.core.campaign import Campaign, campaign_inputs
 from pytest_metamorphic.core.errors import DataError, ExternalSystemError, InvalidArgument
+from pytest_metamorphic.core.files import field, inside, read_json, read_regular
+from pytest_metamorphic.core.locks import exclusive
 from pytest_metamorphic.lidar.io import write_bin
 from pytest_metamorphic.lidar.io.kitti import (
     read_kitti_labels,
@@ -97,6 +100,13 @@ def export_dataset(
     if not isinstance(campaign, Campaign):
         raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
     root = Path(folder)
+    # One export per folder at a time: two would mix their files (the lock dies with
+    # the process; core/locks.py).
+    with exclusive(root / ".export.lock", what=f"export folder {root}"):
+        return _export(campaign, root, sources)
+
+
+def _export(campaign: Campaign, root: Path, sources: Iterable[int] | None) -> Path:
     manifest_path = root / MANIFEST
     if manifest_path.exists():
         raise InvalidArgument(
@@ -167,34 +177,78 @@ class OfflinePredictions:
         self.format = format
         self.class_names = None if class_names is None else list(class_names)
         manifest = self.dataset / MANIFEST
-        try:
-            document = json.loads(manifest.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as error:
-            raise DataError(f"not an exported dataset's manifest: {error}", path=manifest) from None
-        if document.get("format") != FORMAT:
+        document = read_json(manifest, what="offline dataset manifest")
+        if field(document, "format", str, where="the manifest", path=manifest) != FORMAT:
             raise DataError(f"not a {FORMAT} manifest", path=manifest)
         if not self.predictions.is_dir():
             raise InvalidArgument(f"predictions={self.predictions} is not a folder")
-        self.header = document["campaign"]
-        self.ids = {entry["sha1"]: entry["id"] for entry in document["inputs"]}
+        self.header = field(document, "campaign", dict, where="the manifest", path=manifest)
+        self.ids = _manifest_ids(
+            field(document, "inputs", list, where="the manifest", path=manifest), manifest
+        )
+        self._verified: set[str] = set()
 
     def __repr__(self) -> str:
         return f"OfflinePredictions({str(self.predictions)!r}, {self.format})"
 
     def __call__(self, frame: Any, roi: Any = None) -> list[Box]:
-        key = self.ids.get(frame_digest(frame))
+        digest = frame_digest(frame)
+        key = self.ids.get(digest)
         if key is None:
             raise ExternalSystemError(
                 f"this input is not in the dataset {self.dataset} (exported from another "
                 "campaign, seed or version?)"
             )
+        self._verify(key, digest)
         suffix = ".txt" if self.format == "kitti" else ".json"
-        path = self.predictions / f"{key}{suffix}"
-        if not path.is_file():
+        path = inside(self.predictions, f"{key}{suffix}", field=f"prediction file of {key}")
+        if not path.exists():
             raise ExternalSystemError(f"no predictions for input {key}: {path} is missing")
         if self.format == "json":
             return read_json_predictions(path, class_names=self.class_names)
         return read_kitti_labels(path, sensor_calibration())
+
+    def _verify(self, key: str, digest: str) -> None:
+        """The exported cloud of ``key`` is the input the manifest says (checked once per
+        id): an edited manifest or swapped files cannot pair an input with the predictions
+        of another."""
+        if key in self._verified:
+            return
+        cloud = inside(self.dataset / "velodyne", f"{key}.bin", field=f"input {key}")
+        if hashlib.sha1(read_regular(cloud, what="exported input")).hexdigest() != digest:
+            raise DataError(
+                f"the manifest pairs this input with id {key}, but velodyne/{key}.bin holds "
+                "another cloud: the manifest was edited or the files were swapped",
+                path=self.dataset / MANIFEST,
+            )
+        self._verified.add(key)
+
+
+_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")
+_SHA1 = re.compile(r"[0-9a-f]{40}")
+
+
+def _manifest_ids(entries: list[Any], manifest: Path) -> dict[str, str]:
+    """sha1 -> id of the manifest's inputs; ids are plain, unique file names."""
+    ids: dict[str, str] = {}
+    seen: set[str] = set()
+    for number, entry in enumerate(entries):
+        where = f"the manifest's inputs[{number}]"
+        key = field(entry, "id", str, where=where, path=manifest)
+        digest = field(entry, "sha1", str, where=where, path=manifest)
+        if not _ID.fullmatch(key):
+            raise DataError(
+                f"{where}: id {key[:40]!r} is not a plain file name (letters, digits, _ and -)",
+                path=manifest,
+            )
+        if key in seen:
+            raise DataError(f"{where}: id {key!r} appears twice", path=manifest)
+        if not _SHA1.fullmatch(digest):
+            raise DataError(f"{where}: sha1 is not 40 hexadecimal digits", path=manifest)
+        seen.add(key)
+        # Identical inputs (a follow-up equal to its source) share one prediction file.
+        ids[digest] = key
+    return ids
 
 
 def offline_campaign(campaign: Campaign, predictions: OfflinePredictions) -> Campaign:

@@ -26,25 +26,43 @@ Two ways to run the command:
   source and its follow-ups together (:mod:`pytest_metamorphic.core.batching`), so a
   model can run them as one batch.
 
-``timeout`` bounds each frame (the first frame of a process also gets
-``startup_timeout`` for loading); a process past it is killed and the call raises
+``timeout`` is the limit per frame in both modes; only the first request to a fresh
+long-lived process also gets ``startup_timeout`` (loading a model). A program past its
+limit is killed with its whole process group and the call raises
 :class:`~pytest_metamorphic.core.errors.SystemTimeout`, which the engine and campaigns
-report as a crash, never as a violation. A process that dies, or writes a file that is
-not predictions, raises :class:`~pytest_metamorphic.core.errors.ExternalSystemError`.
+report as a crash, never as a violation. A program that dies, writes a file that is not
+predictions, or prints on stdout anything but its one answer line per request (a banner,
+a second line) raises :class:`~pytest_metamorphic.core.errors.ExternalSystemError`
+naming what it printed. Programs run in process groups of their own: helpers they fork
+are killed with them, and cannot block a run by keeping its pipes open
+(:mod:`pytest_metamorphic.core.processes`).
+
+The contract, for a detector written in any language:
+
+* **input**: ``.bin``, float32 little-endian x, y, z, intensity per point (KITTI), or a
+  PCD file; metres in the LiDAR frame, x forward, y left, z up, origin at the sensor;
+* **output, JSON**: ``{"boxes": [{"center": [x, y, z], "size": [length, width, height],
+  "yaw": yaw, "label": "car", "score": 0.9}, ...]}`` with ``center`` the geometric centre
+  of the box (not its bottom), ``length`` along the heading, ``yaw`` in radians
+  counter-clockwise from +x about +z, all in the LiDAR frame. Labels are the project's
+  (``car``, ``pedestrian``, ``cyclist``, ``unknown``) or the detector's own class names:
+  KITTI's, nuScenes' and Waymo's are known
+  (:data:`~pytest_metamorphic.lidar.systems.detectors.CLASS_LABELS`), others map through
+  ``label_map=`` and otherwise become ``unknown``;
+* **output, KITTI**: a label file (camera frame, bottom centre, h w l, ``rotation_y``,
+  a score column), converted with ``calibration``;
+* **stdout** (long-lived mode): exactly one line per request, written after the
+  prediction files; everything else (logs, banners) goes to stderr.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
 import os
-import selectors
 import shlex
 import shutil
-import subprocess
 import tempfile
 import threading
-import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -53,8 +71,9 @@ from pytest_metamorphic.core.errors import (
     DataError,
     ExternalSystemError,
     InvalidArgument,
-    SystemTimeout,
 )
+from pytest_metamorphic.core.files import read_json
+from pytest_metamorphic.core.processes import LineChannel, run_command
 from pytest_metamorphic.core.timeout import check_timeout
 from pytest_metamorphic.lidar.io.kitti import (
     KittiCalibration,
@@ -63,12 +82,10 @@ from pytest_metamorphic.lidar.io.kitti import (
     sensor_calibration,
 )
 from pytest_metamorphic.lidar.model.cloud import PointCloud
-from pytest_metamorphic.lidar.model.obstacles import Box
-from pytest_metamorphic.lidar.systems.detectors import from_mmdet3d, from_openpcdet
+from pytest_metamorphic.lidar.model.obstacles import LABELS, Box, Label
+from pytest_metamorphic.lidar.systems.detectors import from_mmdet3d, from_openpcdet, label_mapping
 
 __all__ = ["ProcessDetector", "boxes_to_json", "read_json_predictions"]
-
-_STDERR_TAIL = 2000
 
 
 def boxes_to_json(boxes: Sequence[Box]) -> dict[str, Any]:
@@ -88,51 +105,67 @@ def boxes_to_json(boxes: Sequence[Box]) -> dict[str, Any]:
 
 
 def read_json_predictions(
-    path: str | os.PathLike[str], *, class_names: Sequence[str] | None = None
+    path: str | os.PathLike[str],
+    *,
+    class_names: Sequence[str] | None = None,
+    label_map: Mapping[str, Label] | None = None,
 ) -> list[Box]:
     """Boxes from a JSON predictions file.
 
-    Accepted layouts: ``{"boxes": [...]}`` or a bare list of box objects (``center``,
-    ``size`` as length/width/height, ``yaw``, ``label``, optional ``score``; see
-    :func:`boxes_to_json`); OpenPCDet's ``{"pred_boxes", "pred_labels", "pred_scores"}``
-    or mmdetection3d's ``{"bboxes_3d", "labels_3d", "scores_3d"}``, which need
-    ``class_names`` (see :mod:`pytest_metamorphic.lidar.systems.detectors`).
+    Accepted layouts: ``{"boxes": [...]}`` or a bare list of box objects (``center``: the
+    geometric centre, ``size`` as length, width, height, ``yaw`` in radians about +z,
+    ``label``, optional ``score``; see the module docstring and :func:`boxes_to_json`);
+    OpenPCDet's ``{"pred_boxes", "pred_labels", "pred_scores"}`` or mmdetection3d's
+    ``{"bboxes_3d", "labels_3d", "scores_3d"}``, which need ``class_names`` (see
+    :mod:`pytest_metamorphic.lidar.systems.detectors`).
+
+    Parameters
+    ----------
+    path : path-like
+    class_names : sequence of str, optional
+        For the array layouts: the detector's class names, by index.
+    label_map : mapping, optional
+        Class name -> label, on top of
+        :data:`~pytest_metamorphic.lidar.systems.detectors.CLASS_LABELS` ("Car" is
+        ``car``); a name neither knows becomes ``unknown``.
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise DataError(f"not a JSON predictions file: {error}", path=path) from None
+    mapping = label_mapping(label_map)
+    data = read_json(path, what="JSON predictions file")
     try:
         if isinstance(data, Mapping) and ("pred_boxes" in data or "bboxes_3d" in data):
             if class_names is None:
                 raise DataError("OpenPCDet/mmdetection3d arrays need class_names=", path=path)
             convert = from_openpcdet if "pred_boxes" in data else from_mmdet3d
-            return convert(dict(data), class_names=class_names)
+            return convert(dict(data), class_names=class_names, label_map=label_map)
         items = data.get("boxes") if isinstance(data, Mapping) else data
         if not isinstance(items, list):
             raise DataError('expected {"boxes": [...]} or a list of boxes', path=path)
-        return [_box(item, index) for index, item in enumerate(items)]
+        return [_box(item, index, mapping) for index, item in enumerate(items)]
     except InvalidArgument as error:
         raise DataError(str(error), path=path) from None
 
 
-def _box(item: Any, index: int) -> Box:
+def _box(item: Any, index: int, mapping: Mapping[str, Label]) -> Box:
     if not isinstance(item, Mapping):
-        raise InvalidArgument(f"boxes[{index}] is {item!r}, not an object")
+        raise InvalidArgument(f"boxes[{index}] is {type(item).__name__}, not an object")
     missing = {"center", "size"} - set(item)
     if missing:
         raise InvalidArgument(f"boxes[{index}] has no {sorted(missing)}")
+    name = item.get("label", "unknown")
+    if not isinstance(name, str):
+        raise InvalidArgument(f"boxes[{index}]: label must be a string")
+    label: Label = name if name in LABELS else mapping.get(name, "unknown")
     try:
         return Box(
             tuple(item["center"]),
             tuple(item["size"]),
             float(item.get("yaw", 0.0)),
-            item.get("label", "unknown"),
+            label,
             None if item.get("score") is None else float(item["score"]),
         )
     except (TypeError, ValueError) as error:
-        raise InvalidArgument(f"boxes[{index}]: {error}") from None
+        raise InvalidArgument(f"boxes[{index}]: {str(error)[:200]}") from None
 
 
 class ProcessDetector:
@@ -154,10 +187,14 @@ class ProcessDetector:
         (default :func:`~pytest_metamorphic.lidar.io.kitti.sensor_calibration`).
     class_names : sequence of str, optional
         For JSON predictions in OpenPCDet's or mmdetection3d's array layout.
+    label_map : mapping, optional
+        The detector's class names -> the project's labels, on top of the known names
+        (``"Car"``, ``"Pedestrian"``, nuScenes', Waymo's); see :func:`read_json_predictions`.
     timeout : float or None
-        Seconds per frame (default 60).
+        Seconds per frame, in both modes (default 60); a program past it is killed.
     startup_timeout : float
-        Extra seconds for the first frame of a fresh process (loading a model).
+        Extra seconds for the first request to a fresh long-lived process (loading a
+        model); not used per frame.
     env, cwd
         The command's environment (added to this process's) and working directory.
     batch_size : int, optional
@@ -175,6 +212,7 @@ class ProcessDetector:
         output_format: Literal["json", "kitti"] = "json",
         calibration: str | os.PathLike[str] | KittiCalibration | None = None,
         class_names: Sequence[str] | None = None,
+        label_map: Mapping[str, Label] | None = None,
         timeout: float | None = 60.0,
         startup_timeout: float = 60.0,
         env: Mapping[str, str] | None = None,
@@ -218,15 +256,15 @@ class ProcessDetector:
         self.output_format = output_format
         self.calibration = calibration
         self.class_names = None if class_names is None else list(class_names)
+        label_mapping(label_map)  # checked now, not on the first frame
+        self.label_map = None if label_map is None else dict(label_map)
         self.timeout = check_timeout(timeout)
         self.startup_timeout = check_timeout(startup_timeout, "startup_timeout") or 0.0
         self.env = None if env is None else {**os.environ, **dict(env)}
         self.cwd = None if cwd is None else str(cwd)
         self.calls = 0
         self.starts = 0
-        self._process: subprocess.Popen[str] | None = None
-        self._stderr: Any = None
-        self._fresh = False
+        self._channel: LineChannel | None = None
         self._lock = threading.Lock()
         self._calib: KittiCalibration | None = None
 
@@ -237,7 +275,7 @@ class ProcessDetector:
     def __getstate__(self) -> dict[str, Any]:
         # Sent to workers (xdist, Dask) without the running process; each starts its own.
         state = self.__dict__.copy()
-        state.update(_process=None, _stderr=None, _fresh=False, _lock=None)
+        state.update(_channel=None, _lock=None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -254,20 +292,16 @@ class ProcessDetector:
         with contextlib.suppress(Exception):
             self.close()
 
+    @property
+    def running(self) -> bool:
+        """Whether a long-lived process is up (it is started on the next request if not)."""
+        return self._channel is not None and self._channel.alive()
+
     def close(self) -> None:
-        """Stop the long-lived process, if one is running."""
-        process, self._process = self._process, None
-        if process is not None and process.poll() is None:
-            with contextlib.suppress(Exception):
-                process.stdin.close()  # type: ignore[union-attr]
-            try:
-                process.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
-        if self._stderr is not None:
-            self._stderr.close()
-            self._stderr = None
+        """Stop the long-lived process, if one is running (with its process group)."""
+        channel, self._channel = self._channel, None
+        if channel is not None:
+            channel.close()
 
     def __call__(self, frame: Any, roi: Any = None) -> list[Box]:
         """Run the command on ``frame`` (a Frame, a PointCloud or an (n, 4) array)."""
@@ -331,7 +365,9 @@ class ProcessDetector:
             )
         try:
             if self.output_format == "json":
-                return read_json_predictions(path, class_names=self.class_names)
+                return read_json_predictions(
+                    path, class_names=self.class_names, label_map=self.label_map
+                )
             return read_kitti_labels(path, self._calibration())
         except DataError as error:
             raise ExternalSystemError(f"{self._name()} wrote garbage: {error}") from None
@@ -355,118 +391,35 @@ class ProcessDetector:
     def _run_once(self, source: Path, target: Path) -> None:
         args = [part.format(input=source, output=target) for part in self.command]
         self.starts += 1
-        try:
-            done = subprocess.run(
-                args,
-                capture_output=True,
-                text=True,
-                timeout=None if self.timeout is None else self.timeout + self.startup_timeout,
-                env=self.env,
-                cwd=self.cwd,
-                stdin=subprocess.DEVNULL,
-                check=False,
-            )
-        except subprocess.TimeoutExpired:
-            raise SystemTimeout(
-                f"{self._name()} did not finish within {self.timeout:g} s (+ "
-                f"{self.startup_timeout:g} s start-up); killed",
-                seconds=float(self.timeout or 0),
-            ) from None
-        except OSError as error:
-            raise ExternalSystemError(f"{self._name()} could not start: {error}") from None
-        if done.returncode != 0:
-            raise ExternalSystemError(
-                f"{self._name()} exited with status {done.returncode}; stderr ends:\n"
-                f"{_tail(done.stderr)}"
-            )
+        run_command(args, name=self._name(), timeout=self.timeout, env=self.env, cwd=self.cwd)
 
     # -- one long-lived process ------------------------------------------------------------
 
-    def _start(self) -> subprocess.Popen[str]:
-        self.close()
-        # Kept open for the process's lifetime (closed by close()): its stderr, for errors.
-        self._stderr = tempfile.TemporaryFile(mode="w+", encoding="utf-8", errors="replace")  # noqa: SIM115
-        try:
-            self._process = subprocess.Popen(
-                self.command,
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=self._stderr,
-                text=True,
-                bufsize=1,
-                env=self.env,
-                cwd=self.cwd,
-            )
-        except OSError as error:
-            raise ExternalSystemError(f"{self._name()} could not start: {error}") from None
-        self.starts += 1
-        self._fresh = True
-        return self._process
-
     def _request(self, files: Sequence[tuple[Path, Path]]) -> None:
-        process = self._process
-        if process is None or process.poll() is not None:
-            process = self._start()
         limit = None if self.timeout is None else self.timeout * len(files)
-        if limit is not None and self._fresh:
-            limit += self.startup_timeout
-        self._fresh = False
+        channel = self._channel
+        if channel is None or not channel.alive():
+            self.close()
+            channel = self._channel = LineChannel(
+                self.command, name=self._name(), env=self.env, cwd=self.cwd
+            )
+            self.starts += 1
+            if limit is not None:
+                limit += self.startup_timeout  # loading the model: the first request only
         line = "\t".join(f"{source}\t{target}" for source, target in files)
         try:
-            process.stdin.write(f"{line}\n")  # type: ignore[union-attr]
-            process.stdin.flush()  # type: ignore[union-attr]
-        except (BrokenPipeError, OSError):
-            self._died(process)
-        answer = self._readline(process, limit)
-        if answer is None:
-            self._died(process)
-
-    def _readline(self, process: subprocess.Popen[str], limit: float | None) -> str | None:
-        """One line of the process's stdout; None at end of file; SystemTimeout past ``limit``."""
-        stdout = process.stdout
-        assert stdout is not None
-        with selectors.DefaultSelector() as selector:
-            selector.register(stdout, selectors.EVENT_READ)
-            deadline = None if limit is None else time.monotonic() + limit
-            while True:
-                left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
-                if selector.select(left):
-                    line = stdout.readline()
-                    return line if line else None
-                if deadline is not None and time.monotonic() >= deadline:
-                    process.kill()
-                    process.wait()
-                    self._process = None
-                    raise SystemTimeout(
-                        f"{self._name()} gave no answer within {limit:g} s; killed (it is "
-                        "started again for the next frame)",
-                        seconds=float(limit or 0),
-                    )
-
-    def _died(self, process: subprocess.Popen[str]) -> None:
-        try:
-            status = process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            status = process.wait()
-        self._process = None
-        stderr = ""
-        if self._stderr is not None:
-            self._stderr.seek(0)
-            stderr = self._stderr.read()
-        raise ExternalSystemError(
-            f"{self._name()} died (exit status {status}) before answering; stderr ends:\n"
-            f"{_tail(stderr)}"
-        )
-
-
-def _tail(text: str) -> str:
-    text = (text or "").strip()
-    if not text:
-        return "    (nothing)"
-    if len(text) > _STDERR_TAIL:
-        text = "..." + text[-_STDERR_TAIL:]
-    return "\n".join(f"    {line}" for line in text.splitlines())
+            answer = channel.request(line, timeout=limit)
+            missing = [target.name for _, target in files if not target.exists()]
+            if missing:
+                raise ExternalSystemError(
+                    f"{self._name()} answered {answer[:200]!r} before writing {missing[0]}: "
+                    "if that line is a banner or a log line, print it to stderr (stdout is "
+                    "reserved for one answer line per request, written after the files)"
+                )
+        except BaseException:
+            # Timed out, died or broke the protocol: killed; started afresh next time.
+            self.close()
+            raise
 
 
 def _as_command(command: Any) -> list[str]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import json
 import sys
 import time
 from pathlib import Path
@@ -74,7 +75,7 @@ def test_a_long_lived_process_starts_once_and_restarts_after_a_hang() -> None:
     with pytest.raises(SystemTimeout, match=r"gave no answer within 2.5 s; killed"):
         slow(frame)
     assert time.perf_counter() - began < 9
-    assert slow._process is None  # killed, started again on the next call
+    assert not slow.running  # killed, started again on the next call
     slow.close()
 
 
@@ -104,7 +105,7 @@ def test_a_dying_process_is_named_with_its_status_and_stderr() -> None:
 def test_garbage_output_is_named() -> None:
     garbage = ProcessDetector([sys.executable, SCRIPT, "--garbage", "{input}", "{output}"], env=ENV)
     with pytest.raises(
-        ExternalSystemError, match=r"wrote garbage: .*predictions\.json: not a JSON"
+        ExternalSystemError, match=r"wrote garbage: .*predictions\.json: .*not valid JSON"
     ):
         garbage(kitti())
     labels = ProcessDetector([sys.executable, SCRIPT, "--garbage", "{input}", "{output}"],
@@ -163,6 +164,19 @@ def test_a_persistent_process_takes_batches_of_frames(tmp_path: Path) -> None:
         single.run_batch(frames)
 
 
+def test_a_detectors_own_class_names_are_understood(tmp_path: Path) -> None:
+    path = tmp_path / "p.json"
+    boxes = [{"center": [9, 0, -1], "size": [4, 2, 1.5], "label": name} for name in
+             ("Car", "Cyclist", "Pedestrian", "pedestrian", "Tractor", "tree")]  # fmt: skip
+    path.write_text(json.dumps({"boxes": boxes}))
+    labels = [box.label for box in read_json_predictions(path)]
+    assert labels == ["car", "cyclist", "pedestrian", "pedestrian", "unknown", "unknown"]
+    mapped = read_json_predictions(path, label_map={"Tractor": "car", "tree": "unknown"})
+    assert [box.label for box in mapped][4] == "car"
+    with pytest.raises(InvalidArgument, match="label_map"):
+        ProcessDetector(PER_FRAME, label_map={"Tractor": "vehicle"})  # type: ignore[dict-item]
+
+
 def test_json_prediction_layouts(tmp_path: Path) -> None:
     path = tmp_path / "p.json"
     path.write_text('[{"center": [1, 2, 3], "size": [4, 2, 1.5], "yaw": 0.1, "label": "car"}]')
@@ -176,8 +190,10 @@ def test_json_prediction_layouts(tmp_path: Path) -> None:
         ('{"pred_boxes": [], "pred_labels": []}', "class_names"),
         ('{"boxes": 3}', "expected"),
         ('[{"center": [1, 2, 3]}]', "size"),
-        ('[{"center": [1, 2, 3], "size": [1, 1, 1], "label": "tree"}]', "label"),
-        ("{", "not a JSON"),
+        ('[{"center": [1, 2, 3], "size": [1, 1, 1], "label": 7}]', "label must be a string"),
+        ("{", "not valid JSON"),
+        ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+        ('[{"center": "abc", "size": [1, 1, 1]}]', "boxes\\[0\\]"),
     ]:
         path.write_text(text)
         with pytest.raises(Exception, match=message) as info:

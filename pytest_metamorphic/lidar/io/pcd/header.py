@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +23,6 @@ MAX_HEADER_BYTES = 64 * 1024
 #: Bytes read for the header first; more are read only when its DATA line is not in them.
 _FIRST_READ = 4096
 #: O_BINARY: no newline translation on Windows (0 elsewhere).
-_OPEN_FLAGS = os.O_RDONLY | getattr(os, "O_BINARY", 0)
 #: Real PCD records are at most a few kB (a 308-float VFH descriptor is 1232 bytes).
 MAX_POINT_STEP = 1 << 20
 _SIZES = {"F": (4, 8), "U": (1, 2, 4, 8), "I": (1, 2, 4, 8)}

@@ -27,14 +27,26 @@ def _need(available: int, needed: int, what: str, path: Path) -> None:
         )
 
 
+def _no_more(available: int, used: int, what: str, path: Path) -> None:
+    """Refuse bytes after the payload the header declares: a header that understates
+    POINTS or WIDTH would otherwise read silently short."""
+    if available > used:
+        raise DataError(
+            f"{available - used} bytes follow {what} the header declares ({used} bytes): the "
+            "header understates POINTS/WIDTH, or the file has trailing data",
+            path=path,
+        )
+
+
 def _read_binary(
     fd: int, path: Path, header: PcdHeader, available: int, options: dict
 ) -> PointCloud:
     dtype = header.dtype()
     step = dtype.itemsize  # header.point_step, without summing it again
     size = header.points * step
-    if size > available:  # (the message is only built when it is needed)
+    if size != available:  # (the messages are only built when they are needed)
         _need(available, size, f"{header.points} points of {step} bytes", path)
+        _no_more(available, size, f"the {header.points} points", path)
     records = np.empty(header.points, dtype)
     read = _read_into(fd, records.view(np.uint8))
     if read != size:  # the file shrank since fstat()
@@ -90,6 +102,7 @@ def _read_compressed(
             path=path,
         )
     _need(available - 8, compressed, "the compressed payload", path)
+    _no_more(available - 8, compressed, "the compressed payload", path)
     if uncompressed > _lzf.MAX_RATIO * compressed + 64:
         raise DataError(
             f"{compressed} LZF bytes cannot expand to the declared {uncompressed}", path=path

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import check_regular
 from pytest_metamorphic.lidar.io._common import (
     ZerosPolicy,
     check_policies,
@@ -63,6 +64,13 @@ def _open(path: Path) -> Iterator[Any]:
 
     if not path.exists():
         raise DataError("no such bag (file or ROS 2 bag folder)", path=path)
+    # rosbags opens the files itself: a FIFO among them would block it forever.
+    if path.is_dir():
+        for part in sorted(path.iterdir()):
+            if part.name == "metadata.yaml" or part.suffix.lower() in (".db3", ".mcap"):
+                check_regular(part, what="bag file")
+    else:
+        check_regular(path, what="bag")
     with wrap_errors(path, "bag"):
         try:
             reader = AnyReader([_CappedPath(path)], default_typestore=_typestore(ros1=False))

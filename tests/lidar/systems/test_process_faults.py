@@ -1,0 +1,141 @@
+"""Detector programs that misbehave never hang a run, never outlive it, never fill the
+memory, and are named for what they did (issue: inputs from outside)."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pytest_metamorphic.core.errors import ExternalSystemError, SystemTimeout
+from pytest_metamorphic.lidar.systems.process import ProcessDetector
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
+
+SCRIPT = str(Path(__file__).with_name("misbehaving_detector.py"))
+CLOUD = np.zeros((8, 4), np.float32)
+
+
+def per_frame(mode: str, **options: object) -> ProcessDetector:
+    return ProcessDetector([sys.executable, SCRIPT, mode, "{input}", "{output}"], **options)
+
+
+def served(mode: str, *extra: str, **options: object) -> ProcessDetector:
+    return ProcessDetector([sys.executable, SCRIPT, mode, *extra], persistent=True, **options)
+
+
+def gone(pid: int) -> bool:
+    """Not running: no such process, or a zombie waiting for its reaper."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return True
+    return state in ("Z", "X")
+
+
+def eventually(condition, seconds: float = 10.0) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
+def test_the_timeout_is_the_limit_per_frame_without_a_startup_allowance() -> None:
+    # Before: timeout + startup_timeout (60 s) per frame, so a 10 s sleep "passed".
+    started = time.monotonic()
+    with pytest.raises(SystemTimeout, match="within 1 s"):
+        per_frame("sleep", timeout=1, startup_timeout=60)(CLOUD)
+    assert time.monotonic() - started < 9  # killed long before its 10 s
+
+
+def test_a_helper_holding_the_pipes_neither_blocks_the_frame_nor_outlives_it(
+    tmp_path: Path,
+) -> None:
+    # Before: a false timeout on every frame (the wait read the pipes to their end), and
+    # the helpers were left running.
+    pid_file = tmp_path / "helper.pid"
+    detector = per_frame("fork", timeout=20, env={"MT_HELPER_PID": str(pid_file)})
+    started = time.monotonic()
+    assert detector(CLOUD) == []
+    assert time.monotonic() - started < 15
+    helper = int(pid_file.read_text())
+    assert eventually(lambda: gone(helper))
+
+
+def test_stderr_is_read_back_only_as_its_tail() -> None:
+    with pytest.raises(ExternalSystemError, match="status 1") as info:
+        per_frame("chatty", timeout=30)(CLOUD)
+    message = str(info.value)
+    assert "the last words" in message and len(message) < 10_000
+
+
+def test_a_partial_answer_line_cannot_hang_a_long_lived_process() -> None:
+    # Before: readline() blocked after select() saw "do"; the run hung for ever.
+    detector = served("partial", timeout=1, startup_timeout=1)
+    started = time.monotonic()
+    with pytest.raises(SystemTimeout, match="'do' without a newline"):
+        detector(CLOUD)
+    assert time.monotonic() - started < 9
+    assert not detector.running
+
+
+@pytest.mark.parametrize("mode", ["banner", "two-lines"])
+def test_stray_output_on_stdout_is_named(mode: str) -> None:
+    detector = served(mode, timeout=30)
+    with pytest.raises(ExternalSystemError, match="stdout is reserved") as info:
+        for _ in range(3):  # caught on the request where the stray line shows
+            detector(CLOUD)
+    assert ("Welcome" in str(info.value)) or ("another thing" in str(info.value))
+    assert not detector.running
+
+
+def test_a_long_lived_processs_stderr_stays_bounded() -> None:
+    with served("noisy", timeout=30) as detector:
+        for _ in range(4):  # 8 MB written in all
+            detector(CLOUD)
+        assert detector._channel is not None
+        assert detector._channel.stderr_bytes < 3 << 20
+
+
+def test_closing_kills_the_helpers_of_a_long_lived_process(tmp_path: Path) -> None:
+    pid_file = tmp_path / "helper.pid"
+    detector = served("forking-server", str(pid_file), timeout=30)
+    detector(CLOUD)
+    helper = int(pid_file.read_text())
+    assert not gone(helper)
+    detector.close()
+    assert eventually(lambda: gone(helper))
+
+
+def test_a_dead_process_is_replaced_and_its_helpers_do_not_outlive_it(tmp_path: Path) -> None:
+    pid_file = tmp_path / "helper.pid"
+    detector = served("forking-server", str(pid_file), timeout=30)
+    detector(CLOUD)
+    helper = int(pid_file.read_text())
+    os.kill(detector._channel.process.pid, 9)  # type: ignore[union-attr]
+    assert detector(CLOUD) == []  # started again for the next frame
+    assert detector.starts == 2
+    assert eventually(lambda: gone(helper))  # its group went with the dead process
+    detector.close()
+
+
+def test_a_process_that_dies_while_its_helper_holds_stdout_is_named(tmp_path: Path) -> None:
+    # The helper keeps the pipe open: end-of-file never comes, the process's death must
+    # still be noticed (not a time-out after the full limit).
+    pid_file = tmp_path / "helper.pid"
+    detector = served("forking-server", str(pid_file), timeout=30)
+    detector(CLOUD)
+    channel = detector._channel
+    assert channel is not None
+    threading_kill = __import__("threading").Timer(0.5, os.kill, (channel.process.pid, 9))
+    threading_kill.start()
+    started = time.monotonic()
+    with pytest.raises(ExternalSystemError, match="died"):
+        channel.request(f"STALL\t{tmp_path / 'out.json'}", timeout=30)
+    assert time.monotonic() - started < 10

@@ -1,0 +1,129 @@
+"""Artifacts from another machine are outside data: a record never reads files outside
+its folder, never echoes what it read, and bad structure is a DataError naming the field
+(issue: inputs from outside)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.lidar.io import write_pcd
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.reports import artifacts
+from pytest_metamorphic.reports.artifacts import load_artifact, load_case
+
+SECRET = "root:x:0:0:the first line of a file outside the folder"
+
+
+BOX = {"center": [1, 2, 3], "size": [1, 1, 1], "yaw": 0, "label": "car", "score": None}
+
+
+def frame_spec(cloud: str = "source.pcd", **extra: Any) -> dict[str, Any]:
+    return {"kind": "frame", "cloud": cloud, **extra}
+
+
+def make(folder: Path, **changes: Any) -> Path:
+    """A small valid artifact folder, with ``changes`` applied to its record."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_pcd(PointCloud(np.ones((5, 4), np.float32)), folder / "source.pcd", overwrite=True)
+    record = {
+        "format": artifacts.FORMAT,
+        "version": artifacts.VERSION,
+        "nodeid": "tests/test_x.py::test_x",
+        "relation": "MR1",
+        "source": frame_spec(),
+        "followup": frame_spec(),
+        "params": {},
+        **changes,
+    }
+    (folder / "record.json").write_text(json.dumps(record))
+    return folder
+
+
+def test_a_valid_record_loads(tmp_path: Path) -> None:
+    case = load_case(make(tmp_path / "a"))
+    assert len(case.source.cloud) == 5
+
+
+@pytest.fixture
+def outside(tmp_path: Path) -> Path:
+    secret = tmp_path / "outside" / "secret.pcd"
+    secret.parent.mkdir()
+    secret.write_text(SECRET + "\n")
+    return secret
+
+
+@pytest.mark.parametrize("how", ["relative", "absolute", "symlink"])
+def test_a_cloud_path_cannot_leave_the_folder(tmp_path: Path, outside: Path, how: str) -> None:
+    folder = tmp_path / "artifacts" / "a"
+    if how == "relative":
+        cloud = os.path.relpath(outside, folder)
+    elif how == "absolute":
+        cloud = str(outside)
+    else:
+        folder.mkdir(parents=True)
+        (folder / "link").symlink_to(outside.parent)
+        cloud = "link/secret.pcd"
+    artifact = load_artifact(make(folder, source=frame_spec(cloud)))
+    with pytest.raises(DataError, match=r"source\.cloud .* leaves the folder") as info:
+        artifact.source()
+    assert "root:x" not in str(info.value)  # before: the first line was echoed
+
+
+def test_a_record_nested_too_deeply_is_a_data_error(tmp_path: Path) -> None:
+    folder = make(tmp_path / "a")
+    (folder / "record.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(DataError, match="nested too deeply"):  # before: RecursionError
+        load_artifact(folder)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"nodeid": 5}, "'nodeid' must be a string"),
+        ({"source": []}, "'source' must be an object, not an array"),
+        ({"params": "noise"}, "'params' must be an object or null"),
+        ({"source": {"kind": 3}}, "'kind' must be a string"),
+        ({"source": frame_spec(cloud=None)}, r"source\.cloud must be a file name"),
+        ({"source": frame_spec(boxes={"a": 1})}, "'boxes' must be an array"),
+        ({"source": frame_spec(boxes=[{"center": [1, 2, 3]}])}, r"boxes\[0\] has no 'size'"),
+        ({"source": frame_spec(boxes=[{**BOX, "center": [1, "a", 3]}])}, "cannot be rebuilt"),
+        ({"source": frame_spec(roi={"polygons": 3})}, "'polygons' must be an array"),
+        ({"source": frame_spec(index="7")}, "'index' must be an integer"),
+    ],
+)
+def test_wrong_field_types_are_named(tmp_path: Path, changes: dict[str, Any], message: str) -> None:
+    with pytest.raises(DataError, match=message) as info:
+        load_case(make(tmp_path / "a", **changes))
+    assert not isinstance(info.value.__cause__, (TypeError, KeyError, AttributeError))
+
+
+def test_a_perturbation_that_does_not_rebuild_is_named(tmp_path: Path) -> None:
+    params = {"noise": {"type": "NoiseOutsideROI", "points": "not numbers"}}
+    with pytest.raises(DataError, match=r"params\.noise cannot be rebuilt"):
+        load_case(make(tmp_path / "a", params=params))
+
+
+def test_a_record_that_is_a_fifo_does_not_block(tmp_path: Path) -> None:
+    folder = tmp_path / "a"
+    folder.mkdir()
+    os.mkfifo(folder / "record.json")
+    with pytest.raises(DataError, match="FIFO"):
+        load_artifact(folder)
+
+
+def test_replaying_a_bad_record_is_a_usage_error_not_an_internal_error(
+    pytester: pytest.Pytester, tmp_path: Path
+) -> None:
+    folder = make(tmp_path / "a")
+    (folder / "record.json").write_text("{" * 50_000)
+    result = pytester.runpytest_subprocess("--mt-replay", str(folder))
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--mt-replay:*record.json*"])
+    assert "INTERNALERROR" not in result.stdout.str() + result.stderr.str()
