@@ -69,6 +69,7 @@ CLASS_LABELS: Mapping[str, Label] = {
     "Vehicle": "car",
     "Sign": "unknown",
 }
+"""Class names of KITTI, nuScenes and Waymo -> the project's labels (``label_map`` adds)."""
 
 
 def _array(value: Any, name: str, *, dtype: Any = np.float64) -> NDArray[Any]:
