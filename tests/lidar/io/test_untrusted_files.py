@@ -151,3 +151,12 @@ def test_trailing_bytes_after_a_binary_payload_are_refused(tmp_path: Path) -> No
         handle.write(b"\n")
     with pytest.raises(DataError, match="1 bytes follow"):
         read_pcd(path)
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+@pytest.mark.parametrize("reader", ["Apollo polygons", "Apollo ROI points", "pcd", "OSM"])
+def test_a_device_is_refused_not_read_to_exhaustion(reader: str) -> None:
+    # Before: /dev/zero read as text ended in a raw MemoryError.
+    _, read = READERS[reader]
+    error = finishes(lambda: read(Path("/dev/zero")))
+    assert isinstance(error, DataError) and "device" in str(error)
