@@ -309,7 +309,8 @@ class _Runner:
             raise  # assume(), reject(): Hypothesis control flow, not a crash
         except Exception as error:
             recorder = current_recorder()
-            if recorder:
+            # A replayed time-out was counted when it happened.
+            if recorder and error is not self._replay_timeout:
                 if isinstance(error, SystemTimeout) and recorder.timed_out is None:
                     recorder.timed_out = (_case_digest(self._case), error)
                 if relation is None:
