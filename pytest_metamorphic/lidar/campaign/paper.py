@@ -82,7 +82,7 @@ def mr1_campaign(
         bird's-eye IoU >= 0.5, as :func:`~pytest_metamorphic.relations.lidar.mr1_subset`).
     scope : "roi", "all" or ObstacleScope
         Which obstacles are judged and counted (:mod:`pytest_metamorphic.lidar.judging.scope`):
-        by default those with at least half their footprint inside the ROI, so a detector
+        by default those whose footprint lies wholly inside the ROI, so a detector
         reporting the whole sweep is not blamed for changes off the road (the table's
         "out of scope" column counts those pairs). ``"all"``: every obstacle.
     """

@@ -393,8 +393,8 @@ class CoveredObstaclesKept(Relation):
         if not missing:
             return Verdict(True, self.name, details=details)
         lines = [
-            f"{boxes[i].describe()} lost although {after} of its {before} points are left "
-            f"({share:.0%} of them in follow-up obstacles)"
+            f"{boxes[i].describe()} lost although its box still holds {after} points after the "
+            f"fault ({before} before; {share:.0%} of them in follow-up obstacles)"
             for i, before, after, share in missing
         ]
         return Verdict(False, self.name, "; ".join(lines[:10]), details)

@@ -75,7 +75,7 @@ def rotation_equivariance(
         Each obstacle needs its *own* partner (default); False lets pieces of one object
         share one (a network that splits an object in one output and not the other).
     scope : "roi", "all" or ObstacleScope
-        Which obstacles are compared (default: those mostly inside the ROI).
+        Which obstacles are compared (default: those wholly inside the ROI).
     """
     if angles not in ("quarter_turns", "any"):
         raise InvalidArgument(f"angles={angles!r} must be 'quarter_turns' or 'any'")

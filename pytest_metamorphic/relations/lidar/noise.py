@@ -114,8 +114,8 @@ def mr1_subset(
         label and bird's-eye IoU >= 0.5 (KITTI's threshold for people), so an obstacle
         that moves a little is kept but one that vanishes or changes class is not.
     scope : "roi", "all" or ObstacleScope
-        Which source obstacles must be kept: by default those with at least half their
-        footprint inside the ROI (:mod:`pytest_metamorphic.lidar.judging.scope`), so a detector
+        Which source obstacles must be kept: by default those whose footprint lies wholly
+        inside the ROI (:mod:`pytest_metamorphic.lidar.judging.scope`), so a detector
         that reports the whole sweep is not blamed for noise changing obstacles off the
         road; those changes are counted as information. ``"all"`` judges every obstacle.
     """
