@@ -58,7 +58,7 @@ def open_regular_fd(path: str | os.PathLike[str], *, what: str = "file") -> int:
     """A raw descriptor of ``path`` opened for reading if it is a regular file (for readers
     that read into arrays straight from the descriptor); see :func:`open_regular`."""
     name = os.fspath(path)
-    # Non-blocking, so that opening a FIFO returns at once; blocking again once checked.
+    # Non-blocking, so that opening a FIFO returns at once.
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
     try:
         fd = os.open(name, flags)
@@ -71,8 +71,8 @@ def open_regular_fd(path: str | os.PathLike[str], *, what: str = "file") -> int:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
             raise DataError(f"cannot read {what}: it is {_kind(mode)}", path=name)
-        if hasattr(os, "set_blocking"):
-            os.set_blocking(fd, True)
+        # O_NONBLOCK stays: it means nothing for a regular file (reads never wait), and
+        # clearing it would cost two more system calls per file.
     except BaseException:
         os.close(fd)
         raise
