@@ -54,9 +54,19 @@ def street() -> Frame:
 
 @functools.cache
 def kitti(index: int) -> Frame:
-    """A labelled KITTI sweep with the camera-wedge ROI; skips when the data is absent."""
+    """A KITTI sweep with the camera-wedge ROI (its labels not attached); skips when the
+    data is absent."""
     path = conftest.shared_data_path("kitti_openpcdet", "training", "velodyne", f"{index:06d}.bin")
     return Frame(read_bin(path), roi=kitti_label_region())
+
+
+def labelled_kitti(index: int) -> Frame:
+    """The same sweep with its KITTI labels as boxes (ground truth, e.g. for insertion
+    templates)."""
+    from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+
+    folder = conftest.shared_data_path("kitti_openpcdet", "training")
+    return FrameCatalog(folder, roi=kitti_label_region()).load(index)
 
 
 def mr1_holds(

@@ -43,7 +43,7 @@ from pytest_metamorphic.reports.artifacts import (
 )
 from pytest_metamorphic.reports.replay import example_snippet, replay
 from pytest_metamorphic.strategies import frames
-from tests.core.lidar_cases import assert_minimal_hiding_set, kitti
+from tests.core.lidar_cases import assert_minimal_hiding_set, kitti, labelled_kitti
 
 NODEID = "tests/test_perception.py::test_mr1"
 MUTANT = mutant("grid_anchored_at_sweep")
@@ -374,11 +374,13 @@ def test_object_edit_violations_replay_from_their_artifacts(
     """The edit is saved as JSON (its box, and for an insertion its returns and what they
     hide), rebuilt on replay, and judged again: still failing with the faulty system,
     passing with the reference."""
-    test = _edit_test(mutant(faulty), relation, kitti(sweep))
+    # An insertion's templates are the source's labelled objects (ground truth only).
+    frame = labelled_kitti(sweep) if kind is InsertObject else kitti(sweep)
+    test = _edit_test(mutant(faulty), relation, frame)
     writer, _ = run_saving(test, tmp_path)
     artifact = load_artifact(writer.written[-1])
     edit = artifact.followup().params["remove_object" if kind is RemoveObject else "insert_object"]
     assert isinstance(edit, kind)
     assert replay(artifact, test._metamorphic).still_fails
-    fixed = _edit_test(ReferencePerception(), relation, kitti(sweep))
+    fixed = _edit_test(ReferencePerception(), relation, frame)
     assert not replay(artifact, fixed._metamorphic).still_fails

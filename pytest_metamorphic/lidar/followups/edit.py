@@ -56,12 +56,14 @@ _CLASSES = ("car", "pedestrian", "cyclist")
 _PROPOSER = ReferencePerception()  # proposes the objects of an unlabelled frame
 
 
-def removal_candidates(frame: Frame, *, scope: ScopeLike = "roi") -> list[Box]:
+def removal_candidates(
+    frame: Frame, *, scope: ScopeLike = "roi", labelled_only: bool = False
+) -> list[Box]:
     """Objects a follow-up may remove, nearest first: the frame's labelled boxes (ground
-    truth) when it has any, else what the reference pipeline finds; cars, pedestrians and
-    cyclists that ``scope`` judges."""
+    truth) when it has any, else (unless ``labelled_only``) what the reference pipeline
+    finds; cars, pedestrians and cyclists that ``scope`` judges."""
     chosen = as_scope(scope)
-    boxes = list(frame.boxes) or _PROPOSER(frame)
+    boxes = list(frame.boxes) or ([] if labelled_only else _PROPOSER(frame))
     boxes = [box for box in boxes if box.label in _CLASSES]
     judged = chosen.judged(boxes, frame)
     inside = [box for box, keep in zip(boxes, judged, strict=True) if keep]

@@ -3,6 +3,7 @@ what it stands in front of hidden, and the relation built on it valid on real sw
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,7 +14,7 @@ from hypothesis import strategies as st
 import conftest
 from pytest_metamorphic import InvalidArgument, MetamorphicViolation, metamorphic
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.followups.edit import OthersKept
+from pytest_metamorphic.lidar.followups.edit import OthersKept, removal_candidates
 from pytest_metamorphic.lidar.followups.insert import (
     INSERTED_INSTANCE,
     RANGE_FACTORS,
@@ -30,7 +31,7 @@ from pytest_metamorphic.lidar.systems.perception import ReferencePerception
 from pytest_metamorphic.lidar.systems.perception.mutants import mutant
 from pytest_metamorphic.lidar.systems.perception.whole_scene import WholeScenePerception
 from pytest_metamorphic.relations.lidar import object_insertion, object_templates
-from tests.core.lidar_cases import GROUND_Z, ROAD, kitti, standing, street
+from tests.core.lidar_cases import GROUND_Z, ROAD, kitti, labelled_kitti, standing, street
 
 CAR = standing(12.0, -2.5, (4.3, 1.8, 1.5), 0.35, "car")
 
@@ -145,15 +146,16 @@ def test_free_placements_stand_on_seen_free_ground_inside_the_roi() -> None:
 
 @pytest.mark.parametrize("system", [ReferencePerception(), WholeScenePerception()], ids=repr)
 def test_object_insertion_holds_on_every_kitti_sweep_and_a_rendered_street(system) -> None:  # type: ignore[no-untyped-def]
-    """Validity: objects from all seven frames, every other one inserted at its first two
+    """Validity: the labelled objects of all seven frames, each inserted at its first two
     free places in each frame: 0 violations."""
     relation = object_insertion().relation
     frames = [street(), *(kitti(index) for index in range(6))]
-    library = object_templates(frames)
+    # Templates are ground truth: the labelled objects of the same sweeps.
+    library = object_templates([street(), *(labelled_kitti(index) for index in range(6))])
     runs = judged = 0
     for frame in frames:
         source_output = system(frame)
-        for template in library[::2]:
+        for template in library:
             for placement in free_placements(frame, template, limit=2):
                 insertion = InsertObject.onto(frame, template, placement)
                 followup = insertion.apply(frame)
@@ -231,6 +233,20 @@ def test_a_short_range_gate_misses_a_labelled_car_put_back_at_56_m() -> None:
     faulty = mutant("short_range_gate")
     context = CheckContext(frame, followup, insertion.params(), 0)
     verdict = object_insertion().relation.check(faulty(frame), faulty(followup), context)
-    assert not verdict.holds and "(114 returns) is not detected" in verdict.explanation
+    assert not verdict.holds and "(114 returns, a labelled car from " in verdict.explanation
+    assert ") is not detected" in verdict.explanation
     reference = ReferencePerception()
     assert object_insertion().relation.check(reference(frame), reference(followup), context)
+
+
+def test_templates_come_only_from_ground_truth() -> None:
+    # Before: an unlabelled sweep's templates were the reference pipeline's detections
+    # (a 1.80 x 0.72 x 1.25 m fragment was inserted and reported as "a car").
+    frame = FrameCatalog(
+        conftest.shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
+    ).load(1)
+    labelled = object_templates(frame)
+    assert labelled and all(t.label in ("car", "pedestrian", "cyclist") for t in labelled)
+    unlabelled = dataclasses.replace(frame, boxes=())
+    assert object_templates(unlabelled) == []
+    assert removal_candidates(unlabelled)  # removal may still use proposed objects

@@ -55,10 +55,12 @@ class InsertedDetected(Relation):
         details.update(judged=True, detected_share=round(share, 3))
         if share >= self.min_detected:
             return Verdict(True, self.name, details=details)
+        template = insertion.template
+        origin = "" if template is None else f", a labelled {template.label} from {template.source}"
         return Verdict(
             False,
             self.name,
-            f"the inserted {insertion.box.describe()} ({returns} returns) is not detected: "
-            f"{share:.0%} of its returns lie in follow-up obstacles",
+            f"the inserted {insertion.box.describe()} ({returns} returns{origin}) is not "
+            f"detected: {share:.0%} of its returns lie in follow-up obstacles",
             details,
         )

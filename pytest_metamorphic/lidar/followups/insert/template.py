@@ -169,10 +169,14 @@ class Placement:
 def object_templates(
     frames: Frame | Iterable[Frame], *, min_returns: int = 30, scope: ScopeLike = "all"
 ) -> list[ObjectTemplate]:
-    """Objects to insert, taken from ``frames``: every car, pedestrian and cyclist
-    (labelled boxes when a frame has them, else the reference pipeline's detections; see
-    :func:`removal_candidates`) with at least ``min_returns`` returns, nearest first
-    within each frame. ``scope`` picks which of them are taken (default: all)."""
+    """Objects to insert, taken from ``frames``: every labelled car, pedestrian and cyclist
+    (ground truth: a frame's boxes, KITTI labels or a rendered scene's) with at least
+    ``min_returns`` returns, nearest first within each frame. ``scope`` picks which of
+    them are taken (default: all).
+
+    Only ground truth: an insertion claims that a real object of its class was put back,
+    which a detector's guess (a fragment, a wall taken for a car) cannot back. A frame
+    without labels gives no template."""
     if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
         raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
     chosen = [frames] if isinstance(frames, Frame) else list(frames)
@@ -180,7 +184,7 @@ def object_templates(
     for index, frame in enumerate(chosen):
         if not isinstance(frame, Frame):
             raise InvalidArgument(f"frames[{index}] is {frame!r}, not a Frame")
-        for box in removal_candidates(frame, scope=scope):
+        for box in removal_candidates(frame, scope=scope, labelled_only=True):
             try:
                 template = ObjectTemplate.from_frame(frame, box)
             except InvalidArgument:  # too few returns, or no surface (a thin pole)
