@@ -205,7 +205,8 @@ def main() -> None:
     if not KITTI.is_dir():
         sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
     synthetic = st.sampled_from(rendered_scenes())
-    real = frames(str(KITTI), roi=kitti_label_region(), labels=False, cache_size=6)
+    # With their labels: insertion takes its templates from ground truth only.
+    real = frames(str(KITTI), roi=kitti_label_region(), cache_size=6)
     both = st.one_of(real, synthetic)
     suite = [(relation, both) for relation in lidar_relations(scope=args.scope)]
     suite.append((rotation_equivariance(angles="any", scope=args.scope), synthetic))

@@ -118,7 +118,9 @@ def test_a_dead_process_is_replaced_and_its_helpers_do_not_outlive_it(tmp_path: 
     detector = served("forking-server", str(pid_file), timeout=30)
     detector(CLOUD)
     helper = int(pid_file.read_text())
-    os.kill(detector._channel.process.pid, 9)  # type: ignore[union-attr]
+    process = detector._channel.process  # type: ignore[union-attr]
+    os.kill(process.pid, 9)  # dies between two frames
+    process.wait(10)
     assert detector(CLOUD) == []  # started again for the next frame
     assert detector.starts == 2
     assert eventually(lambda: gone(helper))  # its group went with the dead process
