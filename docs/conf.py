@@ -81,27 +81,18 @@ suppress_warnings = ["ref.python"]
 def _canonical(target: str) -> str | None:
     """Where the object ``target`` names is defined (``module.qualname``), following
     re-exports (``pytest_metamorphic.lidar.roi.ROI.contains``); None if it does not exist."""
-    import importlib
+    from api_pages import MISSING, resolve
 
-    parts = target.split(".")
-    for cut in range(len(parts), 0, -1):
-        try:
-            value: Any = importlib.import_module(".".join(parts[:cut]))
-        except ImportError:
-            continue
-        try:
-            for attribute in parts[cut:]:
-                value = getattr(value, attribute)
-        except AttributeError:
-            return None
-        if isinstance(value, type(importlib)):
-            return value.__name__
-        if isinstance(value, TypeVar):
-            return ""  # a type variable in a signature: nothing to link to
-        module = getattr(value, "__module__", None)
-        qualname = getattr(value, "__qualname__", None)
-        return f"{module}.{qualname}" if module and qualname else target
-    return None
+    value = resolve(target)
+    if value is MISSING:
+        return None
+    if isinstance(value, type(sys)):
+        return value.__name__
+    if isinstance(value, TypeVar):
+        return ""  # a type variable in a signature: nothing to link to
+    module = getattr(value, "__module__", None)
+    qualname = getattr(value, "__qualname__", None)
+    return f"{module}.{qualname}" if module and qualname else target
 
 
 def _resolve_own_reference(app: Any, env: Any, node: Any, contnode: Any) -> Any:

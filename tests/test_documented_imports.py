@@ -4,9 +4,12 @@ releases that moved (the README before ``lidar/`` was grouped by concept)."""
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
+import importlib.util
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -68,19 +71,19 @@ def test_a_documented_import_works(document: str, statement: str) -> None:
     exec(compile(statement, document, "exec"), {})
 
 
+@functools.cache
+def _api_pages() -> Any:
+    spec = importlib.util.spec_from_file_location("api_pages", ROOT / "docs" / "api_pages.py")
+    assert spec is not None and spec.loader is not None
+    pages = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pages)
+    return pages
+
+
 def _resolves(dotted: str) -> bool:
-    parts = dotted.split(".")
-    for cut in range(len(parts), 0, -1):
-        try:
-            value: object = importlib.import_module(".".join(parts[:cut]))
-        except ImportError:
-            continue
-        for attribute in parts[cut:]:
-            if not hasattr(value, attribute):
-                return False
-            value = getattr(value, attribute)
-        return True
-    return False
+    """The docs build's own resolution (``docs/api_pages.py``), so both agree."""
+    pages = _api_pages()
+    return pages.resolve(dotted) is not pages.MISSING
 
 
 @pytest.mark.parametrize(("document", "dotted"), NAMES)
