@@ -119,12 +119,20 @@ def test_garbage_output_is_named() -> None:
 
 def test_metamorphic_tests_and_campaigns_drive_a_process(tmp_path: Path) -> None:
     served = ProcessDetector([sys.executable, SCRIPT, "--serve"], persistent=True, env=ENV)
+    in_process = WholeScenePerception()
 
-    @settings(max_examples=3, database=None, deadline=None,
+    # The served detector gets the bare sweep (no ROI), so it has one ground model over the
+    # whole sweep: a stray low return outside the ROI can really change an obstacle inside
+    # it (the documented ``full_cloud_ground`` weakness; random search finds one in a few
+    # hundred examples). Derandomized, so the verdict does not depend on the run's seed;
+    # what the test checks is that every answer through the process is the in-process one.
+    @settings(max_examples=3, database=None, deadline=None, derandomize=True,
               suppress_health_check=list(HealthCheck))  # fmt: skip
     @metamorphic(source=st.just(kitti()), relations=[mr1_subset()], followups=1)
     def test_external(frame: Frame) -> list[Box]:
-        return served(frame)
+        boxes = served(frame)
+        assert boxes == in_process(frame.cloud)
+        return boxes
 
     test_external()
     catalog = FrameCatalog(
