@@ -46,6 +46,7 @@ from pytest_metamorphic.core.errors import (
 )
 from pytest_metamorphic.core.reduction import Reduction, reduce_followup
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, unjudged_changes
+from pytest_metamorphic.core.search_phase import counts_as_new_case
 from pytest_metamorphic.core.stats import (
     DEFAULT_MINIMIZE_BUDGET,
     current_recorder,
@@ -114,6 +115,7 @@ class _Runner:
         self._ahead: dict[int, tuple[Any, BaseException | None]] = {}
         self._case: MetamorphicCase | None = None
         self._replay_timeout: BaseException | None = None
+        self._new_case = True
 
     def _limit(self) -> float | None:
         """The per-call time limit: the decorator's, else ``--mt-timeout``'s, else none."""
@@ -126,6 +128,9 @@ class _Runner:
         __tracebackhide__ = True  # failures should show the user's frames, not the engine's
         recorder = current_recorder()
         self._case = case
+        # A variant or replay of a failing case Hypothesis already counted is not a new
+        # source: its counts go to ``recorder.reruns`` (see core/search_phase.py).
+        self._new_case = recorder is None or counts_as_new_case()
         if recorder is not None and recorder.timed_out is not None and not _in_final_run():
             # A system that hung once is not waited for again while Hypothesis shrinks
             # (before: each shrink step waited the full limit and left a thread behind):
@@ -162,12 +167,17 @@ class _Runner:
 
     def _check_case(self, case: MetamorphicCase, fixtures: dict[str, Any], recorder: Any) -> None:
         __tracebackhide__ = True
+        new = self._new_case
+        reruns = recorder.reruns if recorder and not new else None
         source_output = self._run(case.source, fixtures, "the source input", "source", None)
-        if recorder:
+        if recorder and new:
             recorder.source_calls += 1
+        if reruns:
+            reruns.sources += 1
+            reruns.sut_calls += 1
         for mr in self.mrs:
-            stats = recorder.relation(mr.name) if recorder else None
-            if stats:
+            stats = (recorder.relation(mr.name) if new else reruns) if recorder else None
+            if stats and new:
                 stats.sources += 1
             # .get: an explicit @example case may carry follow-ups for one relation only.
             items = case.followups.get(mr.name, ())
@@ -186,7 +196,7 @@ class _Runner:
                 if not verdict.holds:
                     self._confirm_deterministic(case, source_output, fixtures, mr, stats)
                     if stats:
-                        stats.violations += 1
+                        stats.violations += 1  # in reruns: the same failure again
                     raise self._violation(
                         case, mr, item, index, len(items), fixtures, output, verdict, source_output
                     )
@@ -236,7 +246,8 @@ class _Runner:
                     proven_minimal=reduction.proven_minimal,
                     minimize_calls=reduction.calls,
                 )
-            recorder.violations.append(summary)
+            if final:  # the violation the user sees, once per failing case
+                recorder.violations.append(summary)
             saved = _save(recorder, record, final)
         return _violation_error(record, saved)
 
@@ -313,7 +324,9 @@ class _Runner:
             if recorder and error is not self._replay_timeout:
                 if isinstance(error, SystemTimeout) and recorder.timed_out is None:
                     recorder.timed_out = (_case_digest(self._case), error)
-                if relation is None:
+                if not self._new_case:
+                    recorder.reruns.crashes += 1
+                elif relation is None:
                     recorder.source_crashes += 1
                 else:
                     recorder.relation(relation).crashes += 1

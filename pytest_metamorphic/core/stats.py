@@ -30,6 +30,10 @@ class RelationStats:
     ``sut_calls`` spent reducing violations to 1-minimal follow-ups.
     ``unjudged_changes`` counts follow-ups whose output changed only outside what the
     relation judges (obstacles outside the ROI scope): information, never violations.
+
+    Counts are per distinct case: :attr:`Recorder.reruns` collects, in the same fields,
+    the cases Hypothesis re-ran while shrinking or replaying a failure (``sources``: the
+    re-run cases; ``sut_calls``: every system call they made, source ones included).
     """
 
     sources: int = 0
@@ -64,6 +68,10 @@ class Recorder:
     source_calls: int = 0
     source_crashes: int = 0
     relations: dict[str, RelationStats] = field(default_factory=dict)
+    # Cases Hypothesis ran again while shrinking, explaining or replaying a failure
+    # (core/search_phase.py): their system calls are cost, not new sources or violations.
+    reruns: RelationStats = field(default_factory=RelationStats)
+    # The violations raised to the user (one per failing case Hypothesis reports).
     violations: list[dict[str, Any]] = field(default_factory=list)
     # The first call past its time limit: its case's digest and its error. The rest of the
     # search does not call the system again (engine.py, _Runner.__call__).
@@ -74,7 +82,8 @@ class Recorder:
 
     @property
     def sut_calls(self) -> int:
-        return self.source_calls + sum(stats.sut_calls for stats in self.relations.values())
+        relations = sum(stats.sut_calls for stats in self.relations.values())
+        return self.source_calls + relations + self.reruns.sut_calls
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -82,6 +91,7 @@ class Recorder:
             "source_crashes": self.source_crashes,
             "sut_calls": self.sut_calls,
             "relations": {name: asdict(stats) for name, stats in self.relations.items()},
+            "reruns": asdict(self.reruns),
         }
 
 

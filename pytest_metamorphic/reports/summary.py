@@ -42,10 +42,12 @@ class TestSummary:
     source_calls: int = 0
     source_crashes: int = 0
     relations: dict[str, RelationStats] = field(default_factory=dict)
+    reruns: RelationStats = field(default_factory=RelationStats)
 
     @property
     def sut_calls(self) -> int:
-        return self.source_calls + sum(stats.sut_calls for stats in self.relations.values())
+        relations = sum(stats.sut_calls for stats in self.relations.values())
+        return self.source_calls + relations + self.reruns.sut_calls
 
 
 @dataclass
@@ -66,6 +68,7 @@ class SessionSummary:
         test.source_crashes += data["source_crashes"]
         for name, counts in data["relations"].items():
             test.relations.setdefault(name, RelationStats()).add(RelationStats(**counts))
+        test.reruns.add(RelationStats(**data.get("reruns", {})))
         return True
 
     def rows(self) -> list[dict[str, Any]]:
@@ -107,12 +110,21 @@ class SessionSummary:
             stats.followups for test in self.tests.values() for stats in test.relations.values()
         )
         source_calls = sum(test.source_calls for test in self.tests.values())
+        rerun_calls = sum(test.reruns.sut_calls for test in self.tests.values())
         lines = [fmt(header), *(fmt(line) for line in body)]
+        rerun = f"; {rerun_calls} re-running failing cases while Hypothesis shrank them" * bool(
+            rerun_calls
+        )
         lines.append(
             f"{len(self.tests)} metamorphic test(s), {total_calls} SUT calls "
             f"({source_calls} on sources, each output reused by its follow-ups; "
-            f"{cached} follow-up runs)"
+            f"{cached} follow-up runs{rerun})"
         )
+        if rerun_calls:
+            lines.append(
+                "sources and violations are distinct cases: Hypothesis's shrinking steps and "
+                "the final replay of a failure are not counted again"
+            )
         if scoped:
             lines.append(
                 "out of scope: follow-ups whose output changed only outside what the relation "
@@ -130,6 +142,7 @@ class SessionSummary:
                     "source_crashes": test.source_crashes,
                     "sut_calls": test.sut_calls,
                     "relations": {name: asdict(s) for name, s in test.relations.items()},
+                    "reruns": asdict(test.reruns),
                 }
                 for test in self.tests.values()
             ]

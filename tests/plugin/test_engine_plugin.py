@@ -220,6 +220,73 @@ def test_zz_count():
     assert test["relations"]["permute"]["followups"] == 90
 
 
+def test_counts_are_distinct_cases_not_shrinking_steps_or_the_final_replay(
+    pytester: pytest.Pytester,
+) -> None:
+    # Every case fails, and Hypothesis stops generating at the first failure
+    # (report_multiple_bugs=False): one source, one violation, whatever the seed. The
+    # shrinking steps and the final replay are re-runs, counted apart (they used to read
+    # as "violations 2" and more for one failure).
+    _write(
+        pytester,
+        """
+calls = []
+
+@settings(database=None, max_examples=50, report_multiple_bugs=False)
+@metamorphic(source=st.lists(st.integers()), followup=lambda xs: st.just([*xs, 0]),
+             relation=relations.equal(), followups=2)
+def test_broken(xs):
+    calls.append(1)
+    return len(xs)  # "appending changes nothing" is false for every list
+
+def test_zz_calls():
+    assert len(calls) > 3  # the failing case was shrunk and replayed
+""",
+    )
+    result = pytester.runpytest("-p", "no:randomly", "--mt-report", "report.json")
+    result.assert_outcomes(passed=1, failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "test_mt.py::test_broken*equal*1*1*2*1*0",
+            "*re-running failing cases while Hypothesis shrank them*",
+            "sources and violations are distinct cases*",
+        ]
+    )
+    report = json.loads((pytester.path / "report.json").read_text())
+    (test,) = report["tests"]
+    counted = test["relations"]["equal"]
+    assert (counted["sources"], counted["violations"]) == (1, 1)
+    reruns = test["reruns"]
+    assert reruns["sources"] >= 1 and reruns["violations"] >= 1  # at least the final replay
+    # Every system call is still accounted for: distinct cases, re-runs, reduction.
+    assert test["sut_calls"] == test["source_calls"] + counted["sut_calls"] + reruns["sut_calls"]
+
+
+def test_explicit_examples_count_as_sources(pytester: pytest.Pytester) -> None:
+    _write(
+        pytester,
+        """
+from hypothesis import Phase, example
+
+from pytest_metamorphic.core.cases import MetamorphicCase
+
+def case(xs):
+    return MetamorphicCase(xs, {"equal": (Followup(xs[::-1]), Followup(sorted(xs)))})
+
+@settings(database=None, phases=[Phase.explicit])
+@example(case=case([3, 1, 2]))
+@example(case=case([]))
+@metamorphic(source=st.lists(st.integers()), followup=lambda xs: st.permutations(xs),
+             relation=relations.equal(), followups=2)
+def test_sort(xs):
+    return sorted(xs)
+""",
+    )
+    result = pytester.runpytest()
+    result.assert_outcomes(passed=1)
+    result.stdout.fnmatch_lines(["test_mt.py::test_sort*equal*2*4*4*0*0"])
+
+
 def test_followups_option_applies_when_decorator_does_not_fix_it(
     pytester: pytest.Pytester,
 ) -> None:
