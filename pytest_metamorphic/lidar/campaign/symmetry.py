@@ -106,7 +106,7 @@ def symmetry_campaign(
     severities : sequence of int, optional
         Default :data:`SYMMETRY_SEVERITIES` for the symmetry.
     center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin
-        Default: a quarter turn's (2 cm, 2 cm, 1 degree, any size, 0.5 m from the ROI's
+        Default: a quarter turn's (10 cm, 15 cm, 5 degrees, any size, 0.5 m from the ROI's
         edge, labels compared) for the mirror, translation and rotations by multiples of
         90 degrees; for other angles those of ``rotation_equivariance(angles="any")``
         (0.8 m, 0.8 m, 20 degrees, >= 30 points, 1 m, labels not compared).

@@ -57,7 +57,8 @@ class Tolerance:
         When a source obstacle is kept in a follow-up (MR1, object edits); None: the
         relations' default (same label, bird's-eye IoU >= 0.5).
     moved : (centre m, size m, yaw degrees, min points) or None
-        Rigid-motion tolerances; None: the relations' defaults (2 cm, 2 cm, 1 degree).
+        Rigid-motion tolerances; None: the relations' defaults (10 cm, 15 cm, 5 degrees:
+        the same obstacle).
     moved_same_label : bool or None
         Whether moved obstacles must keep their class; None: the relations' default.
     moved_shared : bool

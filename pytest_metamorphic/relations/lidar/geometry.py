@@ -12,6 +12,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.perturb import RotateAboutSensor
 from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX, ShiftAlongX
 from pytest_metamorphic.lidar.judging.equivariance import (
+    SAME_OBSTACLE,
     MirroredObstacles,
     MovedObstacles,
     RotatedObstacles,
@@ -52,8 +53,12 @@ def rotation_equivariance(
     angles : {"quarter_turns", "any"}
         ``"quarter_turns"`` (default): θ in {90°, 180°, 270°}. Bird's-eye grids
         anchored at the sensor map onto themselves, so a grid-based detector sees the
-        same points in the same cells; tolerances are tight (2 cm, 2 cm, 1°, objects
-        of any size, 0.5 m from the ROI edge, same label). ``"any"``: θ in tenths of a
+        same points in the same cells; the tolerances say "the same obstacle"
+        (:data:`~pytest_metamorphic.lidar.judging.equivariance.SAME_OBSTACLE`: centre
+        10 cm, length and width 15 cm, heading 5°; objects of any size, 0.5 m from the
+        ROI edge, same label): a grid-based pipeline moves its boxes exactly, DBSCAN's
+        ties (border points between touching clusters) by centimetres, a real fault by
+        decimetres to metres. ``"any"``: θ in tenths of a
         degree in (-180°, 180°]. Grid cells then cut objects differently: a few points
         change between ground and obstacle, MinBox (whose facing-edge choice jumps when
         the hull gains or loses a vertex) moves a box side by tens of centimetres, and
@@ -113,9 +118,9 @@ def rotation_equivariance(
 
 def mirror_symmetry(
     *,
-    center_tolerance: float = 0.02,
-    size_tolerance: float = 0.02,
-    yaw_tolerance: float = 1.0,
+    center_tolerance: float = SAME_OBSTACLE[0],
+    size_tolerance: float = SAME_OBSTACLE[1],
+    yaw_tolerance: float = SAME_OBSTACLE[2],
     min_points: int = 0,
     boundary_margin: float = 0.5,
     same_label: bool = True,
@@ -126,14 +131,15 @@ def mirror_symmetry(
     """Reflecting the cloud and the ROI in the car's x axis reflects the obstacles.
 
     The follow-up is the source's mirror image
-    (:class:`~pytest_metamorphic.lidar.followups.symmetry.MirrorAcrossX`): a left-hand-traffic scene
-    from a right-hand one. Precondition: a detector whose
+    (:class:`~pytest_metamorphic.lidar.followups.symmetry.MirrorAcrossX`): a
+    left-hand-traffic scene from a right-hand one. Precondition: a detector whose
     bird's-eye grids are anchored at the sensor (a reflection maps them onto themselves)
-    and which prefers no side. Tolerances as for quarter turns (2 cm, 2 cm, 1 degree,
-    labels equal), obstacles at least ``boundary_margin`` from the ROI's edge (the mirrored
-    ROI is rasterised afresh). It catches what rotations cannot: a detector that reports
-    its boxes in a frame turned about the sensor (a wrong yaw extrinsic) commutes with
-    every rotation, but not with a reflection. ``same_label=False``: classes are not
+    and which prefers no side. Tolerances as for quarter turns (10 cm, 15 cm, 5 degrees,
+    labels equal: the same obstacle, whatever DBSCAN's ties do), obstacles at least
+    ``boundary_margin`` from the ROI's edge (the mirrored ROI is rasterised afresh). It
+    catches what rotations cannot: a detector that reports its boxes in a frame turned
+    about the sensor (a wrong yaw extrinsic) commutes with every rotation, but not with a
+    reflection. ``same_label=False``: classes are not
     compared; ``exclusive`` as for :func:`rotation_equivariance`.
     """
     relation = moved_obstacles(
