@@ -67,11 +67,6 @@ def search_phase() -> Phase:
     return "final" if context.is_final else "generate"
 
 
-_KNOWN: dict[str, Phase] = {
-    name: name for name in ("reuse", "generate", "target", "shrink", "explain")
-}
-
-
 def counts_as_new_case() -> bool:
     """True when the current case is a new source to count, False for a re-run of one."""
     return search_phase() not in _RERUN_PHASES
