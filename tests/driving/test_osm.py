@@ -280,6 +280,15 @@ def test_malformed_files_raise_data_error(tmp_path: Path, body: str, message: st
     assert "broken.osm" in str(info.value)
 
 
+def test_an_unknown_declared_encoding_is_a_data_error(tmp_path: Path) -> None:
+    # Found by the outside-data fuzz test: expat asks Python's codec registry and its
+    # LookupError escaped raw.
+    path = tmp_path / "odd.osm"
+    path.write_bytes(b"<?xml version='1.0' encoding='UTF0'?>\n<osm/>")
+    with pytest.raises(DataError, match=r"odd\.osm: declares an unknown text encoding.*UTF0"):
+        read_osm(path)
+
+
 def test_missing_empty_corrupt_and_oversized_files(tmp_path: Path) -> None:
     with pytest.raises(DataError, match=r"(?i)no such file"):
         read_osm(tmp_path / "nothing.osm")

@@ -286,6 +286,10 @@ def read_osm(
             f"{xml.parsers.expat.ErrorString(error.code)}",
             path=path,
         ) from None
+    except LookupError as error:
+        # An XML declaration naming an encoding Python does not know (encoding='UTF0'):
+        # expat asks the codec registry, whose LookupError is not an ExpatError.
+        raise DataError(f"declares an unknown text encoding: {error}", path=path) from None
     if not handler.root_seen:
         raise DataError("is empty: no <osm> root element", path=path)
     return OsmData(
