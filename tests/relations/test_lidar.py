@@ -38,6 +38,7 @@ from pytest_metamorphic.relations.lidar import (
     mirror_symmetry,
     mr1_subset,
     outside_removal,
+    permutation_invariance,
     rotation_equivariance,
     translation_equivariance,
 )
@@ -355,3 +356,24 @@ def test_a_shift_along_x_moves_points_roi_and_boxes_and_the_reference_follows_on
     with pytest.raises(InvalidArgument, match="cell_size"):
         translation_equivariance(cell_size=0)
     assert translation_equivariance().name not in {r.name for r in lidar_relations()}
+
+
+def test_equal_outputs_ignore_list_order_and_rounding() -> None:
+    """A detector that lists its clusters in the order it meets their points, and averages
+    them in that order, gives the same boxes in another order with other last digits when
+    the points are reordered: not a violation (it was, on every KITTI sweep, for a DBSCAN
+    detector)."""
+    frame = street()
+    boxes = SUT(frame)
+    assert len(boxes) == 3
+    jittered = [
+        Box(tuple(c + 1e-15 for c in box.center), box.size, box.yaw, box.label, box.score)
+        for box in reversed(boxes)
+    ]
+    followup = PermutePoints(1).apply(frame)
+    context = CheckContext(frame, followup, {}, 0)
+    for relation in (permutation_invariance(), duplication_invariance()):
+        assert relation.relation.check(boxes, jittered, context).holds
+        lost = jittered[1:]
+        verdict = relation.relation.check(boxes, lost, context)
+        assert not verdict.holds and "no identical obstacle" in verdict.explanation

@@ -445,12 +445,16 @@ def judged_count(op: str = "<=", *, scope: ScopeLike = "roi") -> Relation:
 def judged_equal(*, scope: ScopeLike = "roi", matcher: Matcher | None = None) -> Relation:
     """``O == O'`` over judged obstacles: each needs an identical one on the other side.
 
-    With ``scope="all"`` this is :func:`~pytest_metamorphic.core.relations.equal` (exact,
-    order included), as before scopes existed. With a ``matcher`` (a detector whose
-    outputs jitter, e.g. a neural network) "identical" becomes "matched": every judged
-    obstacle of either side needs its own match on the other, one to one.
+    Obstacles are compared as multisets (the order a detector lists them in is not
+    part of its answer: DBSCAN numbers clusters in the order it meets their points) and
+    identical means equal up to floating-point rounding
+    (:data:`~pytest_metamorphic.lidar.model.obstacles.ROUNDING`), for every scope,
+    ``"all"`` included. Outputs that are not lists of boxes are compared exactly. With a
+    ``matcher`` (a detector whose outputs jitter, e.g. a neural network) "identical"
+    becomes "matched": every judged obstacle of either side needs its own match on the
+    other, one to one.
     """
     chosen = as_scope(scope)
     if matcher is not None:
         return _Same(matcher, chosen)
-    return equal() if chosen.everything else _Equal(chosen)
+    return _Equal(chosen)

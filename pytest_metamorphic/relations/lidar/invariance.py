@@ -24,9 +24,11 @@ def permutation_invariance(
 ) -> MetamorphicRelation:
     """The order of the points in the cloud does not matter, for any obstacle.
 
-    Not scoped: reordering touches every point alike, so a detector must give exactly
-    the same output everywhere (this and :func:`duplication_invariance` hold for
-    whole-scene detectors as they do for ROI-first ones). ``matcher``: compare obstacles
+    Not scoped: reordering touches every point alike, so a detector must give the same
+    obstacles everywhere (this and :func:`duplication_invariance` hold for whole-scene
+    detectors as they do for ROI-first ones): as multisets (the order a detector lists
+    them in is not part of its answer) and to floating-point rounding (a centroid summed
+    in another order differs in its last digits). ``matcher``: compare obstacles
     by it, both ways, instead of exactly
     (:data:`~pytest_metamorphic.lidar.judging.tolerance.LEARNED`).
     """

@@ -193,3 +193,18 @@ def test_size_priors_cover_every_label_and_reference_sizes():
     assert SIZE_PRIORS["pedestrian"].contains((0.711, 0.298, 1.154))
     with pytest.raises(InvalidArgument, match="low <= mean <= high"):
         SizePrior(mean=(1, 1, 1), low=(2, 1, 1), high=(3, 1, 1))
+
+
+def test_twins_are_equal_up_to_rounding_and_pair_one_to_one() -> None:
+    from pytest_metamorphic.lidar.model.obstacles import ROUNDING, unmatched_twins
+
+    car = Box((10.0, 2.0, -1.0), (4.2, 1.8, 1.5), 0.3, "car")
+    # Averaged in another order: the last digits differ (a reordered sweep's centroid).
+    summed_otherwise = Box((10.0 + 2e-15, 2.0, -1.0), (4.2, 1.8 - 4e-16, 1.5), 0.3, "car")
+    assert unmatched_twins([car], [summed_otherwise]) == ([], [])
+    # Anything larger than rounding is a difference, and each box has one twin only.
+    moved = Box((10.0 + 10 * ROUNDING, 2.0, -1.0), (4.2, 1.8, 1.5), 0.3, "car")
+    assert unmatched_twins([car], [moved]) == ([0], [0])
+    assert unmatched_twins([car, car], [summed_otherwise]) == ([1], [])
+    relabelled = Box(summed_otherwise.center, summed_otherwise.size, 0.3, "unknown")
+    assert unmatched_twins([car], [relabelled]) == ([0], [0])
