@@ -27,6 +27,7 @@ import math
 import os
 import re
 import shutil
+import textwrap
 import uuid
 import zlib
 from collections.abc import Callable, Mapping
@@ -373,9 +374,24 @@ def _fill(
         json.dump(document, handle, indent=1, allow_nan=False)
 
 
+_TITLE_WIDTH = 110
+_TITLE_LINES = 2
+
+
 def _picture_title(record: Any) -> str:
     reduction = record.reduction
-    lines = [f"{record.relation}", record.minimal_verdict.explanation[:110]]
+    # Two lines of the verdict, cut at a word with a mark: a hard cut at 110 characters
+    # left titles like "the inserted car at (-2." that named nothing.
+    first_line = (record.minimal_verdict.explanation or "").split("\n", 1)[0]
+    wrapped = textwrap.wrap(first_line, _TITLE_WIDTH)
+    if len(wrapped) > _TITLE_LINES:
+        wrapped = [
+            *wrapped[: _TITLE_LINES - 1],
+            textwrap.shorten(
+                " ".join(wrapped[_TITLE_LINES - 1 :]), _TITLE_WIDTH, placeholder=" ..."
+            ),
+        ]
+    lines = [f"{record.relation}", *wrapped]
     if reduction is not None:
         proof = "proven 1-minimal" if reduction.proven_minimal else "NOT proven minimal"
         lines.append(

@@ -127,3 +127,29 @@ def test_replaying_a_bad_record_is_a_usage_error_not_an_internal_error(
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--mt-replay:*record.json*"])
     assert "INTERNALERROR" not in result.stdout.str() + result.stderr.str()
+
+
+def test_picture_titles_cut_the_verdict_at_a_word_and_say_so() -> None:
+    from types import SimpleNamespace
+
+    from pytest_metamorphic.reports.artifacts import _picture_title
+
+    blame = (
+        "inserted object detected (>= 30 returns: >= 50% of them in obstacles; wholly in "
+        "ROI): the inserted car at (-2.2, -46.6) (53 returns, a labelled car from "
+        "synthetic:generated#0) is not detected: 45% of its returns lie in follow-up obstacles"
+    )
+    record = SimpleNamespace(
+        relation="an object inserted", reduction=None,
+        minimal_verdict=SimpleNamespace(explanation=blame + "\nsecond line"),
+    )  # fmt: skip
+    title = _picture_title(record).split("\n")
+    assert title[0] == "an object inserted"
+    assert "the inserted car at (-2.2, -46.6)" in " ".join(title)  # was cut at "(-2."
+    assert all(len(line) <= 110 for line in title[1:]) and len(title) <= 3
+    long = SimpleNamespace(
+        relation="r", reduction=None, minimal_verdict=SimpleNamespace(explanation=blame * 3)
+    )
+    lines = _picture_title(long).split("\n")
+    assert len(lines) == 3 and lines[-1].endswith(" ...")
+    assert all(blame.count(word) for word in lines[1].split())  # whole words only
