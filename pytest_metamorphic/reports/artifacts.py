@@ -30,7 +30,7 @@ import shutil
 import textwrap
 import uuid
 import zlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -172,8 +172,14 @@ def _boxes_or_none(value: Any) -> list[Any] | None:
 
 
 def _hidden(record: Any) -> list[Any]:
-    """What the violation lost: the relation's unmatched elements, else lost obstacles."""
+    """What the violation lost: the source obstacles the relation blames (``blamed`` in its
+    details: a turned or mirrored obstacle without its match, one a fault lost), else its
+    unmatched elements, else the obstacles without an identical twin."""
     details = record.minimal_verdict.details
+    blamed = details.get("blamed") if isinstance(details, Mapping) else None
+    source = record.source_output
+    if isinstance(blamed, list) and isinstance(source, Sequence):
+        return [source[i] for i in blamed if isinstance(i, int) and 0 <= i < len(source)]
     unmatched = details.get("unmatched") if isinstance(details, Mapping) else None
     if isinstance(unmatched, list) and record.minimal_verdict.relation.startswith("subset"):
         source = record.source_output

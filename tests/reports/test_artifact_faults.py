@@ -153,3 +153,38 @@ def test_picture_titles_cut_the_verdict_at_a_word_and_say_so() -> None:
     lines = _picture_title(long).split("\n")
     assert len(lines) == 3 and lines[-1].endswith(" ...")
     assert all(blame.count(word) for word in lines[1].split())  # whole words only
+
+
+def test_pictures_mark_only_the_obstacles_the_relation_blames() -> None:
+    """The mirror's follow-up boxes are in the mirrored frame: none is an identical twin of
+    a source box, so every source obstacle used to be drawn "hidden" (6 of 6, those
+    outside the ROI too) while the relation blamed one."""
+    from types import SimpleNamespace
+
+    from pytest_metamorphic.core.relations import CheckContext
+    from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX
+    from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+    from pytest_metamorphic.relations.lidar import mirror_symmetry
+    from pytest_metamorphic.reports.artifacts import _hidden, _unjudged
+    from tests.core.lidar_cases import street
+
+    frame = street()
+    mirror = MirrorAcrossX()
+    followup = mirror.apply(frame)
+    system = ReferencePerception()
+    source_output, followup_output = system(frame), system(followup)
+    assert len(source_output) >= 3
+    dropped = followup_output[1:]  # the mirrored twin of one obstacle is missing
+    verdict = mirror_symmetry().relation.check(
+        source_output, dropped, CheckContext(frame, followup, mirror.params(), 0)
+    )
+    assert not verdict.holds
+    record = SimpleNamespace(
+        minimal_verdict=verdict, source_output=source_output, minimal_output=dropped
+    )
+    hidden = _hidden(record)
+    assert len(hidden) == len(verdict.details["missing"]) == 1
+    gone = followup_output[0]  # the mirrored obstacle taken away, mapped back: hidden[0]
+    assert abs(hidden[0].center[0] - gone.center[0]) < 0.1
+    assert abs(hidden[0].center[1] + gone.center[1]) < 0.1
+    assert not set(map(id, hidden)) & set(map(id, _unjudged(record)))

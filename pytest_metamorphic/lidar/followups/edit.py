@@ -310,6 +310,9 @@ class OthersKept(Relation):
             "edited": region.describe(),
             "judged_far": len(rows),
             "lost": [source[i].describe() for i in lost],
+            # Source indices: what a picture marks as lost, and what it shows as not judged.
+            "blamed": lost,
+            "unjudged_source": [i for i, chosen in enumerate(judged) if not chosen],
         }
         if not lost:
             return Verdict(True, self.name, details=details)

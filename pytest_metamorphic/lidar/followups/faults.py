@@ -385,10 +385,14 @@ class CoveredObstaclesKept(Relation):
             share = share_inside(remaining, found)
             if share < self.min_detected:
                 missing.append((index, before, after, share))
+        judged = self.scope.judged(boxes, source)
         details = {
             "covered": len(covered),
             "missing": [boxes[i].describe() for i, *_ in missing],
             "scope": self.scope.describe(),
+            # Source indices: what a picture marks as lost, and what it shows as not judged.
+            "blamed": [i for i, *_ in missing],
+            "unjudged_source": [int(i) for i in np.flatnonzero(~judged)],
         }
         if not missing:
             return Verdict(True, self.name, details=details)

@@ -147,11 +147,15 @@ class MovedObstacles(Relation):
             "unjudged_changes": self._unjudged_changes(
                 expected, found, judged_expected, judged_found
             ),
+            # Source indices: what a picture marks as lost, and what it shows as not judged.
+            "blamed": [],
+            "unjudged_source": [int(i) for i in np.flatnonzero(~judged_expected)],
         }
         if not missing and not extra:
             return Verdict(True, self.name, details=details)
         lines = [f"source {expected[i].describe()} ({self.moved}) has no match" for i in missing]
         lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
+        details["blamed"] = list(missing)
         details["missing"] = [expected[i].describe() for i in missing]
         details["extra"] = [found[j].describe() for j in extra]
         return Verdict(False, self.name, "; ".join(lines[:10]), details)
