@@ -305,6 +305,9 @@ def _fill(
     picture, picture_note = None, ""
     source_boxes = _boxes_or_none(record.source_output)
     followup_boxes = _boxes_or_none(record.minimal_output)
+    moved_back = ""
+    if followup_boxes is not None:
+        followup_boxes, moved_back = _in_source_frame(followup_boxes, followup.params)
     if source_spec["kind"] == "frame" and source_boxes is not None and followup_boxes is not None:
         try:
             from pytest_metamorphic.reports.birdseye import draw_birdseye
@@ -321,7 +324,7 @@ def _fill(
                 scope=str(record.minimal_verdict.details.get("scope", "")),
                 injected=_injected_points(record.followup.params),
                 minimal=minimal_points,
-                title=_picture_title(record),
+                title=_picture_title(record) + moved_back,
             )
             picture = "birdseye.png"
     aeb = None
@@ -378,6 +381,29 @@ def _fill(
     document["files"] = [*files, RECORD]
     with (folder / RECORD).open("w", encoding="utf-8") as handle:
         json.dump(document, handle, indent=1, allow_nan=False)
+
+
+def _in_source_frame(boxes: list[Any], params: Mapping[str, Any]) -> tuple[list[Any], str]:
+    """A rigid-motion follow-up's boxes moved back where the source's would be (the picture
+    draws both over the source's cloud), and a title line saying so; other boxes as they
+    are. Without this, every source obstacle of a turned sweep looked lost."""
+    movable = all(hasattr(box, name) for box in boxes for name in ("rotated", "mirrored"))
+    if not isinstance(params, Mapping) or not movable:  # a user's own box type: as it is
+        return boxes, ""
+    if "theta_deg" in params:
+        degrees = float(params["theta_deg"])
+        turn = math.radians(-degrees)
+        return [box.rotated(turn) for box in boxes], (
+            f"\nfollow-up obstacles turned back by {degrees:g} degrees"
+        )
+    if "mirrored" in params:
+        return [box.mirrored() for box in boxes], "\nfollow-up obstacles mirrored back"
+    if "shift_x_m" in params:
+        dx = float(params["shift_x_m"])
+        return [box.translated(-dx, 0.0) for box in boxes], (
+            f"\nfollow-up obstacles shifted back by {dx:g} m"
+        )
+    return boxes, ""
 
 
 _TITLE_WIDTH = 110

@@ -188,3 +188,30 @@ def test_pictures_mark_only_the_obstacles_the_relation_blames() -> None:
     assert abs(hidden[0].center[0] - gone.center[0]) < 0.1
     assert abs(hidden[0].center[1] + gone.center[1]) < 0.1
     assert not set(map(id, hidden)) & set(map(id, _unjudged(record)))
+
+
+def test_pictures_draw_a_moved_follow_up_back_in_the_source_frame() -> None:
+    import math
+
+    from pytest_metamorphic.lidar.followups.perturb import RotateAboutSensor
+    from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX
+    from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+    from pytest_metamorphic.reports.artifacts import _in_source_frame
+    from tests.core.lidar_cases import street
+
+    frame = street()
+    system = ReferencePerception()
+    source = sorted(system(frame), key=lambda box: box.center)
+    for motion, note in (
+        (MirrorAcrossX(), "mirrored back"),
+        (RotateAboutSensor(math.radians(90)), "turned back by 90 degrees"),
+    ):
+        moved = system(motion.apply(frame))
+        back, title = _in_source_frame(moved, motion.params())
+        assert note in title
+        back = sorted(back, key=lambda box: box.center)
+        assert len(back) == len(source)
+        for box, twin in zip(back, source, strict=True):
+            assert math.dist(box.center[:2], twin.center[:2]) < 1e-6
+    # Follow-ups that do not move the scene are drawn as they are.
+    assert _in_source_frame(source, {"n": 10}) == (source, "")
