@@ -63,3 +63,22 @@ def test_a_turned_output_frame_still_fails_the_mirror_on_every_sweep() -> None:
     # A 2-degree yaw extrinsic error moves the mirrored boxes by 1-5 m: far beyond 10 cm.
     found = _violations(mutant("turned_output_frame"), motions=MOTIONS[:1])
     assert [text.split(":")[0] for text in found] == [f"sweep {i}, mirror 0" for i in range(6)]
+
+
+def test_a_lost_moved_obstacle_says_where_its_points_went_and_how_far_off_it_is() -> None:
+    # A wrong 2-degree extrinsic: the boxes keep their sizes and are turned by 4 degrees
+    # against the mirrored scene; the message must let a user see exactly that.
+    from tests.core.lidar_cases import street
+
+    frame = street()
+    faulty = mutant("turned_output_frame")
+    mirror = MirrorAcrossX()
+    followup = mirror.apply(frame)
+    verdict = mirror_symmetry().relation.check(
+        faulty(frame), faulty(followup), CheckContext(frame, followup, mirror.params(), 0)
+    )
+    assert not verdict.holds
+    text = verdict.explanation
+    assert "points:" in text and " in the car at " in text  # how its points were grouped
+    assert "length +0.00 m, width +0.00 m, heading 4.0 deg" in text  # same box, turned
+    assert text.endswith("any difference is the detector's)")

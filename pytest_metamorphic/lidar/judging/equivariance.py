@@ -153,12 +153,44 @@ class MovedObstacles(Relation):
         }
         if not missing and not extra:
             return Verdict(True, self.name, details=details)
-        lines = [f"source {expected[i].describe()} ({self.moved}) has no match" for i in missing]
+        lines = [
+            f"source {expected[i].describe()} ({self.moved}) has no match"
+            + self._diagnosis(expected[i], found, context.followup_input)
+            for i in missing
+        ]
         lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
+        # Rotations, the mirror and shifts move every point and add or drop none, so the
+        # follow-up holds the same scene: whatever differs was decided by the detector.
+        note = (
+            f" (the follow-up holds exactly the source's points, {self.moved}: any "
+            "difference is the detector's)"
+        )
         details["blamed"] = list(missing)
         details["missing"] = [expected[i].describe() for i in missing]
         details["extra"] = [found[j].describe() for j in extra]
-        return Verdict(False, self.name, "; ".join(lines[:10]), details)
+        return Verdict(False, self.name, "; ".join(lines[:10]) + note, details)
+
+    def _diagnosis(self, moved: Box, found: Sequence[Box], followup: Any) -> str:
+        """How a lost obstacle came out: where its points went (per follow-up obstacle)
+        and how far the nearest follow-up obstacle is from the tolerances."""
+        parts = []
+        cloud = getattr(followup, "cloud", None)
+        if cloud is not None:
+            inside = moved.contains(cloud.xyz)
+            points = cloud.xyz[inside]
+            counts = [(int(box.contains(points).sum()), box) for box in found]
+            groups = sorted((c for c in counts if c[0]), key=lambda c: -c[0])[:3]
+            grouped = ", ".join(f"{n} in the {box.describe()}" for n, box in groups)
+            parts.append(f"its {len(points)} points: {grouped or 'none in any obstacle'}")
+        if found:
+            near = min(found, key=moved.center_distance)
+            turned = math.degrees(abs(math.remainder(moved.yaw - near.yaw, math.pi)))
+            parts.append(
+                f"nearest: {near.describe()}, centre {moved.center_distance(near):.2f} m off, "
+                f"length {near.size[0] - moved.size[0]:+.2f} m, "
+                f"width {near.size[1] - moved.size[1]:+.2f} m, heading {turned:.1f} deg"
+            )
+        return f" ({'; '.join(parts)})" if parts else ""
 
     def _unjudged_changes(
         self,
