@@ -190,11 +190,15 @@ def _overview_limits(
 def _zoom_limits(
     hidden: Sequence[Any], minimal: NDArray[np.float64], fallback: Sequence[Any]
 ) -> tuple[float, float, float, float]:
-    focus = list(hidden) or list(fallback)
-    if focus:
-        corners = np.concatenate([box.corners_bev() for box in focus])
+    # What the violation is about: the hidden obstacles, else the minimal points (an
+    # inserted object 46 m away: the close-up showed the near obstacles instead), else
+    # the source's obstacles.
+    if hidden:
+        corners = np.concatenate([box.corners_bev() for box in hidden])
     elif len(minimal):
         corners = minimal
+    elif fallback:
+        corners = np.concatenate([box.corners_bev() for box in fallback])
     else:
         corners = np.zeros((1, 2))
     (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
@@ -296,7 +300,12 @@ def draw_birdseye(
     zx0, zx1, zy0, zy1 = _zoom_limits(hidden, minimal_xy, source_boxes)
     zoom.set_xlim(zx0, zx1)
     zoom.set_ylim(zy0, zy1)
-    for ax, name in ((overview, "whole sweep"), (zoom, "close-up of the hidden obstacle")):
+    close_up = (
+        "close-up of the hidden obstacle"
+        if hidden
+        else ("close-up of the minimal points" if len(minimal_xy) else "close-up")
+    )
+    for ax, name in ((overview, "whole sweep"), (zoom, close_up)):
         ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x (m, forward)")
         ax.set_ylabel("y (m, left)")

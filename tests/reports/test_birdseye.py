@@ -118,3 +118,16 @@ def test_obstacles_outside_the_scope_are_hatched_grey_and_named_in_the_legend(
     bare, plain = draw(tmp_path, source_boxes=[CAR, WALKER, outside])
     assert not bare.unjudged
     assert np.abs(plain.astype(float) - image.astype(float)).sum() > 0
+
+
+def test_the_close_up_shows_the_minimal_points_when_nothing_was_hidden() -> None:
+    # An inserted object not detected 46 m away hides no source obstacle: the close-up
+    # must show its returns, not the near obstacles.
+    from pytest_metamorphic.reports.birdseye import _zoom_limits
+
+    near = [Box((8.0, 2.0, -1.0), (4.0, 1.8, 1.5), 0.0, "car")]
+    inserted = np.array([[-2.3, -45.2], [-2.0, -46.6], [-3.3, -44.9]])
+    x0, x1, y0, y1 = _zoom_limits([], inserted, near)
+    assert x0 < -2.3 < x1 and y0 < -46.6 < y1 and y1 < 0  # around it, the near car outside
+    x0, x1, y0, y1 = _zoom_limits(near, inserted, near)  # hidden obstacles come first
+    assert x0 < 8.0 < x1 and y0 < 2.0 < y1
