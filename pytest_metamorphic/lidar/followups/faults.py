@@ -350,11 +350,19 @@ class CoveredObstaclesKept(Relation):
         )
 
     def covered(
-        self, boxes: Sequence[Box], source: Frame, followup: Frame, reach: float = math.inf
+        self,
+        boxes: Sequence[Box],
+        source: Frame,
+        followup: Frame,
+        reach: float = math.inf,
+        *,
+        judged: NDArray[np.bool_] | None = None,
     ) -> list[tuple[int, int, int]]:
         """``(index, points before, points after)`` of the judged boxes left well covered
-        (within ``reach`` metres of the sensor)."""
-        judged = self.scope.judged(list(boxes), source)
+        (within ``reach`` metres of the sensor); ``judged``: the scope's verdict on
+        ``boxes`` when the caller has it already."""
+        if judged is None:
+            judged = self.scope.judged(list(boxes), source)
         chosen = []
         for index, box in enumerate(boxes):
             if not judged[index] or box.label == "unknown":
@@ -378,14 +386,14 @@ class CoveredObstaclesKept(Relation):
         reach = math.inf
         if self.range_param is not None:
             reach = float(context.params.get(self.range_param, math.inf))
-        covered = self.covered(boxes, source, followup, reach)
+        judged = self.scope.judged(boxes, source)  # once: for coverage and for the picture
+        covered = self.covered(boxes, source, followup, reach, judged=judged)
         missing = []
         for index, before, after in covered:
             remaining = followup.cloud.xyz[boxes[index].contains(followup.cloud.xyz)]
             share = share_inside(remaining, found)
             if share < self.min_detected:
                 missing.append((index, before, after, share))
-        judged = self.scope.judged(boxes, source)
         details = {
             "covered": len(covered),
             "missing": [boxes[i].describe() for i, *_ in missing],
