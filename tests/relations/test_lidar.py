@@ -139,12 +139,29 @@ def test_outside_removal_catches_the_off_by_one_roi() -> None:
 
 @needs_kitti
 def test_permutation_catches_order_dependent_voxels() -> None:
-    frame = kitti_frame(3)
-    permutation = PermutePoints(5)
+    # Keeping the first point of each voxel moves most boxes by centimetres under a
+    # reordering (the same obstacles: no violation, like DBSCAN's ties), and on sweep 5
+    # splits off an obstacle at (29.4, 14.0) that the sweep in its own order does not have.
+    frame = kitti_frame(5)
+    permutation = PermutePoints(0)
     followup = permutation.apply(frame)
     relation = lidar_relations()[4]
-    assert _check(relation, frame, followup, {}, SUT)
-    assert not _check(relation, frame, followup, {}, mutant("order_dependent_voxels"))
+    assert _check(relation, frame, followup, permutation.params(), SUT)
+    verdict = relation.relation.check(
+        mutant("order_dependent_voxels")(frame),
+        mutant("order_dependent_voxels")(followup),
+        CheckContext(frame, followup, permutation.params(), 0),
+    )
+    assert not verdict.holds and "unknown at (29.4, 14.0)" in verdict.explanation
+    # On sweep 3 it only moves boxes: the same obstacles, counted as information.
+    frame = kitti_frame(3)
+    followup = permutation.apply(frame)
+    verdict = relation.relation.check(
+        mutant("order_dependent_voxels")(frame),
+        mutant("order_dependent_voxels")(followup),
+        CheckContext(frame, followup, permutation.params(), 0),
+    )
+    assert verdict.holds and len(verdict.details["same_not_identical"]) >= 5
 
 
 @needs_kitti
@@ -372,8 +389,19 @@ def test_equal_outputs_ignore_list_order_and_rounding() -> None:
     ]
     followup = PermutePoints(1).apply(frame)
     context = CheckContext(frame, followup, {}, 0)
-    for relation in (permutation_invariance(), duplication_invariance()):
-        assert relation.relation.check(boxes, jittered, context).holds
+    for relation in (
+        permutation_invariance(),
+        duplication_invariance(),
+        permutation_invariance(identity="exact"),
+        duplication_invariance(identity="exact"),
+    ):
+        verdict = relation.relation.check(boxes, jittered, context)
+        assert verdict.holds and not verdict.details.get("same_not_identical")
         lost = jittered[1:]
         verdict = relation.relation.check(boxes, lost, context)
-        assert not verdict.holds and "no identical obstacle" in verdict.explanation
+        assert not verdict.holds and verdict.details["changed_source"] == [2]
+
+
+def test_identity_is_checked() -> None:
+    with pytest.raises(InvalidArgument, match="identity='boxes' must be 'points' or 'exact'"):
+        permutation_invariance(identity="boxes")  # type: ignore[arg-type]

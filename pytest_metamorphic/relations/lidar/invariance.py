@@ -3,39 +3,67 @@ and repeated points."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
+from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
+from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.followups.perturb import DuplicatePoints
+from pytest_metamorphic.lidar.judging.identity import SameHeldPoints
 from pytest_metamorphic.lidar.judging.scope import judged_equal
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
 from pytest_metamorphic.strategies import duplicated_points, permuted_points
 
 __all__ = ["PACKET_POINTS", "duplication_invariance", "permutation_invariance"]
 
+Identity = Literal["points", "exact"]
+
+
+def _same_obstacles(identity: Identity, matcher: Matcher | None) -> Relation:
+    """The output relation of the order and repetition invariances."""
+    if identity not in ("points", "exact"):
+        raise InvalidArgument(f"identity={identity!r} must be 'points' or 'exact'")
+    if matcher is not None:
+        return judged_equal(scope="all", matcher=matcher)
+    return SameHeldPoints() if identity == "points" else judged_equal(scope="all")
+
 
 def permutation_invariance(
-    *, matcher: Matcher | None = None, name: str = "points reordered => O == O'"
+    *,
+    identity: Identity = "points",
+    matcher: Matcher | None = None,
+    name: str = "points reordered => O == O'",
 ) -> MetamorphicRelation:
     """The order of the points in the cloud does not matter, for any obstacle.
 
     Not scoped: reordering touches every point alike, so a detector must give the same
     obstacles everywhere (this and :func:`duplication_invariance` hold for whole-scene
-    detectors as they do for ROI-first ones): as multisets (the order a detector lists
-    them in is not part of its answer) and to floating-point rounding (a centroid summed
-    in another order differs in its last digits). ``matcher``: compare obstacles
-    by it, both ways, instead of exactly
-    (:data:`~pytest_metamorphic.lidar.judging.tolerance.LEARNED`).
+    detectors as they do for ROI-first ones). The outputs are compared as multisets (the
+    order a detector lists obstacles in is not part of its answer).
+
+    Parameters
+    ----------
+    identity : {"points", "exact"}
+        When two obstacles are the same. ``"points"`` (default): identical boxes, or boxes
+        of one class holding mostly the same points of the sweep
+        (:class:`~pytest_metamorphic.lidar.judging.identity.SameHeldPoints`: point IoU
+        above 0.5), so a DBSCAN border point that changes sides is no violation while an
+        obstacle lost, split, merged or reclassified is. ``"exact"``: identical boxes to
+        floating-point rounding, scores included (a detector that treats the sweep as a
+        set of points).
+    matcher : Matcher, optional
+        Compare obstacles by it, both ways, instead
+        (:data:`~pytest_metamorphic.lidar.judging.tolerance.LEARNED`).
     """
     return MetamorphicRelation(
         name,
         lambda frame: permuted_points(_frame(frame)),
-        judged_equal(scope="all", matcher=matcher),
+        _same_obstacles(identity, matcher),
     )
 
 
@@ -46,6 +74,7 @@ PACKET_POINTS = 384
 def duplication_invariance(
     *,
     max_size: int = 100,
+    identity: Identity = "points",
     matcher: Matcher | None = None,
     name: str = "points repeated => O == O'",
 ) -> MetamorphicRelation:
@@ -54,9 +83,13 @@ def duplication_invariance(
     Follow-ups repeat, in order of shrinking preference: up to ``max_size`` scattered
     points; one packet's worth of consecutive points (:data:`PACKET_POINTS`, a driver
     that sends a packet twice); or the whole sweep (two drivers publishing one topic).
-    ``matcher`` as for :func:`permutation_invariance`.
+    ``identity`` and ``matcher`` as for :func:`permutation_invariance`: by default a
+    repeated point that only moves a box's border or its score is no violation (the
+    change is counted as information), an obstacle lost, split, merged or reclassified
+    is.
     """
     _check_size(max_size, "max_size")
+    same = _same_obstacles(identity, matcher)
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         frame = _frame(frame)
@@ -79,4 +112,4 @@ def duplication_invariance(
             whole,
         )
 
-    return MetamorphicRelation(name, followup, judged_equal(scope="all", matcher=matcher))
+    return MetamorphicRelation(name, followup, same)
