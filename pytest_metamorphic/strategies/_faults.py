@@ -11,12 +11,14 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.faults import (
     PACKET_DEGREES,
+    QUANTIZATION_RANGE,
     DropAzimuthBlock,
     DropRings,
     QuantizeRange,
@@ -57,37 +59,89 @@ def dead_beams(
     return rings.map(drop)
 
 
-def lost_packets(frame: Any, *, max_packets: int = 10) -> st.SearchStrategy[Followup]:
+def _roi_bearings(frame: Any) -> list[int]:
+    """Bearings (tenths of a degree, 0-3599) at which the frame's ROI holds returns, the
+    one straight ahead first and then outwards, both ways: where a lost packet can cut a
+    judged obstacle, in the order a search should shrink toward. Every bearing when the
+    frame has no ROI or its ROI holds no return."""
+    everything = sorted(range(3600), key=lambda b: (min(b, 3600 - b), b))
+    roi = getattr(frame, "roi", None)
+    if roi is None or len(frame.cloud) == 0:
+        return everything
+    xyz = frame.cloud.xyz
+    inside = np.asarray(roi.contains(xyz[:, :2]), dtype=bool)
+    if not inside.any():
+        return everything
+    bearings = np.degrees(np.arctan2(xyz[inside, 1], xyz[inside, 0]))
+    tenths = np.unique(np.floor(np.mod(bearings, 360.0) * 10).astype(np.int64) % 3600)
+    return sorted((int(b) for b in tenths), key=lambda b: (min(b, 3600 - b), b))
+
+
+def lost_packets(
+    frame: Any, *, max_packets: int = 10, within_roi: bool = True
+) -> st.SearchStrategy[Followup]:
     """The frame without 1 to ``max_packets`` consecutive packets (an azimuth block of
-    :data:`~pytest_metamorphic.lidar.followups.faults.PACKET_DEGREES` each), from a start drawn in
-    tenths of a degree; shrinking toward one packet straight ahead."""
+    :data:`~pytest_metamorphic.lidar.followups.faults.PACKET_DEGREES` each), shrinking
+    toward one packet straight ahead.
+
+    With ``within_roi`` (default) the block is centred on a bearing at which the frame's
+    ROI holds returns (tenths of a degree): a packet lost where nothing is judged cannot
+    fail the relation, and KITTI's camera-wedge ROI covers 80 of 360 degrees. Without
+    it, or without an ROI, the centre is any bearing.
+    """
     frame = _check_frame(frame)
-    blocks = st.tuples(st.integers(0, 3599), st.integers(1, _positive(max_packets, "max_packets")))
+    if not isinstance(within_roi, bool):
+        raise InvalidArgument(f"within_roi={within_roi!r} must be True or False")
+    centres = _roi_bearings(frame) if within_roi else _roi_bearings(None)
+    blocks = st.tuples(
+        st.sampled_from(centres), st.integers(1, _positive(max_packets, "max_packets"))
+    )
 
     def lose(block: tuple[int, int]) -> Followup:
-        start, packets = block
-        fault = DropAzimuthBlock(math.radians(start / 10), math.radians(PACKET_DEGREES * packets))
+        centre, packets = block
+        width = PACKET_DEGREES * packets
+        fault = DropAzimuthBlock(math.radians(centre / 10 - width / 2), math.radians(width))
         return Followup(fault.apply(frame), params={**fault.params(), "packets": packets})
 
     return blocks.map(lose)
 
 
+def _step(value: Any, name: str) -> float:
+    try:
+        return QuantizeRange(value).step
+    except InvalidArgument:
+        raise InvalidArgument(f"{name}={value!r} must be a number of metres in (0, 1]") from None
+
+
 def quantized_ranges(
-    frame: Any, *, steps: Sequence[float] = (0.05, 0.1, 0.2)
+    frame: Any,
+    *,
+    steps: Sequence[float] | None = None,
+    min_step: float = QUANTIZATION_RANGE[0],
+    max_step: float = QUANTIZATION_RANGE[1],
 ) -> st.SearchStrategy[Followup]:
-    """The frame with every range rounded to one of ``steps`` metres
-    (:class:`~pytest_metamorphic.lidar.followups.faults.QuantizeRange`), shrinking toward the
-    first."""
+    """The frame with every range rounded to a step of metres
+    (:class:`~pytest_metamorphic.lidar.followups.faults.QuantizeRange`): drawn in whole
+    millimetres from ``min_step`` to ``max_step``, shrinking toward the finest, or, with
+    ``steps``, one of those levels (shrinking toward the first)."""
     frame = _check_frame(frame)
-    levels = tuple(steps)
-    if not levels:
-        raise InvalidArgument("steps is empty")
-    faults = [QuantizeRange(step) for step in levels]  # validates each step
+    if steps is not None:
+        levels = tuple(steps)
+        if not levels:
+            raise InvalidArgument("steps is empty")
+        faults = [QuantizeRange(step) for step in levels]  # validates each step
+        drawn: st.SearchStrategy[QuantizeRange] = st.sampled_from(faults)
+    else:
+        low, high = _step(min_step, "min_step"), _step(max_step, "max_step")
+        if not low <= high:
+            raise InvalidArgument(f"min_step={min_step!r} must not exceed max_step={max_step!r}")
+        millimetres = st.integers(max(1, math.ceil(low * 1000)), max(1, math.floor(high * 1000)))
+        drawn = millimetres.map(lambda mm: QuantizeRange(mm / 1000))
 
     def quantize(fault: QuantizeRange) -> Followup:
         return Followup(fault.apply(frame), params=fault.params())
 
-    return st.sampled_from(faults).map(quantize)
+    return drawn.map(quantize)
 
 
 def weathered_frames(

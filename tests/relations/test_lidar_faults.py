@@ -141,3 +141,23 @@ def test_the_check_needs_enough_points_left_and_an_overlapping_box() -> None:
         beam_loss(min_points=0)
     with pytest.raises(InvalidArgument, match="max_packets"):
         packet_loss(max_packets=0)
+
+
+def test_unknown_obstacles_are_judged_unless_labels_says_otherwise() -> None:
+    # A lost 60-point unknown object is as much a loss as a car (issue 26); labels= narrows.
+    wall = Box((10.0, 0.0, -1.0), (4.0, 1.8, 1.5), 0.0, "unknown")
+    inside = np.column_stack(
+        [np.linspace(8.5, 11.5, 60), np.linspace(-0.5, 0.5, 60), np.full(60, -1.0)]
+    )
+    source, fewer = _frame_with_box(inside), _frame_with_box(inside[:40])
+    context = CheckContext(source, fewer, {}, 0)
+    lost = CoveredObstaclesKept(scope="all").check([wall], [], context)
+    assert not lost and "unknown at (10.0, 0.0) lost" in lost.explanation
+    named = CoveredObstaclesKept(scope="all", labels=("car", "pedestrian", "cyclist"))
+    assert (
+        named.check([wall], [], context)
+        and named.check([wall], [], context).details["covered"] == 0
+    )
+    for bad in ("car", (), ("car", "truck")):
+        with pytest.raises(InvalidArgument, match="labels="):
+            CoveredObstaclesKept(labels=bad)  # type: ignore[arg-type]

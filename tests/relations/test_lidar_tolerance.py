@@ -63,7 +63,7 @@ def test_profiles_and_the_relation_library() -> None:
     exact = {r.name: r.relation.name for r in lidar_relations()}
     learned = {r.name: r.relation.name for r in lidar_relations(tolerance="learned")}
     assert exact.keys() == learned.keys()
-    assert exact["points repeated => O == O'"] == "equal(all obstacles)"
+    assert exact["points repeated => O == O'"].startswith("same obstacles(points held IoU > 0.5")
     assert learned["points repeated => O == O'"].startswith("same[centre distance <= 0.5 m")
     assert (
         "centre distance <= 0.5 m, same label"

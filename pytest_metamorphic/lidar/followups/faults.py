@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -28,10 +28,18 @@ from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, share_inside
+from pytest_metamorphic.lidar.model.obstacles import (
+    LABELS,
+    Box,
+    Label,
+    as_boxes,
+    points_in_boxes,
+    share_inside,
+)
 
 __all__ = [
     "PACKET_DEGREES",
+    "QUANTIZATION_RANGE",
     "CoveredObstaclesKept",
     "DropAzimuthBlock",
     "DropRings",
@@ -248,6 +256,12 @@ class DropAzimuthBlock:
         }
 
 
+#: Range steps (metres) that :func:`~pytest_metamorphic.strategies.quantized_ranges` draws
+#: from by default: 5-20 cm, in whole millimetres (a 16-bit range field at 2-4 mm is
+#: KITTI's; 5-20 cm is a cheap sensor's or a compressed recording's).
+QUANTIZATION_RANGE: tuple[float, float] = (0.05, 0.2)
+
+
 @dataclass(frozen=True)
 class QuantizeRange:
     """Round every return's range to a multiple of ``step`` metres, along its beam (a
@@ -309,6 +323,15 @@ def _fraction(value: Any, name: str, *, upper: float = 1.0) -> float:
     return float(value)
 
 
+def _labels(labels: Collection[Label]) -> frozenset[Label]:
+    if isinstance(labels, str) or not isinstance(labels, Collection):
+        raise InvalidArgument(f"labels={labels!r} must be a collection of labels from {LABELS}")
+    chosen = frozenset(labels)
+    if not chosen or not chosen <= set(LABELS):
+        raise InvalidArgument(f"labels={labels!r} must be a non-empty subset of {LABELS}")
+    return chosen
+
+
 class CoveredObstaclesKept(Relation):
     """Every judged source obstacle that the fault leaves *well covered* is still detected.
 
@@ -334,7 +357,9 @@ class CoveredObstaclesKept(Relation):
         min_detected: float = 0.5,
         scope: ScopeLike = "roi",
         range_param: str | None = None,
+        labels: Collection[Label] = LABELS,
     ) -> None:
+        self.labels = _labels(labels)
         if range_param is not None and not isinstance(range_param, str):
             raise InvalidArgument(f"range_param={range_param!r} must be a params key or None")
         self.range_param = range_param
@@ -361,22 +386,44 @@ class CoveredObstaclesKept(Relation):
         """``(index, points before, points after)`` of the judged boxes left well covered
         (within ``reach`` metres of the sensor); ``judged``: the scope's verdict on
         ``boxes`` when the caller has it already."""
+        return [
+            (index, before, len(rows))
+            for index, before, rows in self._covered_rows(boxes, source, followup, reach, judged)
+        ]
+
+    def _covered_rows(
+        self,
+        boxes: Sequence[Box],
+        source: Frame,
+        followup: Frame,
+        reach: float,
+        judged: NDArray[np.bool_] | None,
+    ) -> list[tuple[int, int, NDArray[np.intp]]]:
+        """Like :meth:`covered`, with the follow-up's rows in each box for the points."""
         if judged is None:
             judged = self.scope.judged(list(boxes), source)
+        candidates = [
+            index
+            for index, box in enumerate(boxes)
+            if judged[index]
+            and box.label in self.labels
+            and math.hypot(box.center[0], box.center[1]) <= reach
+        ]
+        chosen_boxes = [boxes[index] for index in candidates]
+        inside_before = points_in_boxes(source.cloud.xyz, chosen_boxes)
+        inside_after = points_in_boxes(followup.cloud.xyz, chosen_boxes)
         chosen = []
-        for index, box in enumerate(boxes):
-            if not judged[index] or box.label == "unknown":
-                continue
-            if math.hypot(box.center[0], box.center[1]) > reach:
-                continue
-            z_before = source.cloud.xyz[box.contains(source.cloud.xyz), 2]
-            z_after = followup.cloud.xyz[box.contains(followup.cloud.xyz), 2]
-            before, after = len(z_before), len(z_after)
+        for index, rows_before, rows_after in zip(
+            candidates, inside_before, inside_after, strict=True
+        ):
+            before, after = len(rows_before), len(rows_after)
             if after < self.min_points or after < self.min_share * before:
                 continue
+            z_before = source.cloud.xyz[rows_before, 2]
+            z_after = followup.cloud.xyz[rows_after, 2]
             span = float(z_before.max() - z_before.min())
             if float(z_after.max() - z_after.min()) >= self.min_height_share * span:
-                chosen.append((index, before, after))
+                chosen.append((index, before, rows_after))
         return chosen
 
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
@@ -387,13 +434,12 @@ class CoveredObstaclesKept(Relation):
         if self.range_param is not None:
             reach = float(context.params.get(self.range_param, math.inf))
         judged = self.scope.judged(boxes, source)  # once: for coverage and for the picture
-        covered = self.covered(boxes, source, followup, reach, judged=judged)
+        covered = self._covered_rows(boxes, source, followup, reach, judged)
         missing = []
-        for index, before, after in covered:
-            remaining = followup.cloud.xyz[boxes[index].contains(followup.cloud.xyz)]
-            share = share_inside(remaining, found)
+        for index, before, rows in covered:
+            share = share_inside(followup.cloud.xyz[rows], found)
             if share < self.min_detected:
-                missing.append((index, before, after, share))
+                missing.append((index, before, len(rows), share))
         details = {
             "covered": len(covered),
             "missing": [boxes[i].describe() for i, *_ in missing],

@@ -32,12 +32,16 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, equal
 from pytest_metamorphic.lidar.judging.equivariance import SAME_OBSTACLE
-from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, unmatched_twins
+from pytest_metamorphic.lidar.model.obstacles import (
+    Box,
+    as_boxes,
+    points_in_boxes,
+    unmatched_twins,
+)
 
 __all__ = ["HELD_GROW", "HELD_IOU", "SameHeldPoints", "held_points"]
 
@@ -67,20 +71,7 @@ def held_points(points: Any, boxes: Sequence[Box], *, grow: float = HELD_GROW) -
     xyz = np.asarray(getattr(points, "points", points), dtype=np.float64)
     if xyz.ndim != 2 or xyz.shape[1] < 3:
         raise InvalidArgument(f"points must be (n, >=3), got shape {xyz.shape}")
-    if not boxes:
-        return []
-    if len(xyz) == 0:
-        return [set() for _ in boxes]
-    # Candidates within each box's bounding circle from one k-d tree; then the exact test.
-    centres = np.array([box.center[:2] for box in boxes])
-    reach = np.array([math.hypot(*box.size[:2]) / 2 + grow for box in boxes])
-    near = cKDTree(xyz[:, :2]).query_ball_point(centres, reach)
-    held = []
-    for box, candidates in zip(boxes, near, strict=True):
-        rows = np.asarray(candidates, dtype=np.intp)
-        inside = box.grown(grow).contains(xyz[rows]) if len(rows) else np.zeros(0, bool)
-        held.append({int(i) for i in rows[inside]})
-    return held
+    return [{int(i) for i in rows} for rows in points_in_boxes(xyz, boxes, grow=grow)]
 
 
 class SameHeldPoints(Relation):

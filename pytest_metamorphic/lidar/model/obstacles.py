@@ -33,6 +33,7 @@ __all__ = [
     "bev_iou",
     "center_distances",
     "footprint_distances",
+    "points_in_boxes",
     "share_inside",
     "unmatched_twins",
 ]
@@ -341,6 +342,45 @@ def _corners(boxes: Sequence[Box]) -> NDArray[np.float64]:
     if not boxes:
         return np.empty((0, 4, 2))
     return np.stack([box.corners_bev() for box in boxes])
+
+
+def points_in_boxes(
+    points: ArrayLike, boxes: Sequence[Box], *, grow: float = 0.0
+) -> list[NDArray[np.intp]]:
+    """The indices of ``points`` inside each box grown by ``grow`` metres (faces included).
+
+    The same as ``np.flatnonzero(box.grown(grow).contains(points))`` for each box, but the
+    exact test runs only on the points a k-d tree over x, y finds within the box's
+    bounding circle: a sweep of 120k points and a hundred boxes in milliseconds.
+
+    Parameters
+    ----------
+    points : (n, >=3) array_like or PointCloud
+    boxes : sequence of Box
+    grow : float
+
+    Returns
+    -------
+    list of (k,) intp
+        One sorted index array per box.
+    """
+    xyz = _as_xyz(getattr(points, "points", points))
+    if not boxes:
+        return []
+    if len(xyz) == 0:
+        return [np.zeros(0, dtype=np.intp) for _ in boxes]
+    from scipy.spatial import cKDTree  # only here: most users of this module never need it
+
+    grown = [box.grown(grow) if grow else box for box in boxes]
+    centres = np.array([box.center[:2] for box in grown])
+    # The bounding circle, plus a millimetre so float32 corners are never cut.
+    reach = np.array([math.hypot(*box.size[:2]) / 2 + 1e-3 for box in grown])
+    near = cKDTree(xyz[:, :2]).query_ball_point(centres, reach)
+    found = []
+    for box, candidates in zip(grown, near, strict=True):
+        rows = np.sort(np.asarray(candidates, dtype=np.intp))
+        found.append(rows[box.contains(xyz[rows])] if len(rows) else rows)
+    return found
 
 
 def share_inside(points: ArrayLike, boxes: Sequence[Box], *, grow: float = 0.1) -> float:

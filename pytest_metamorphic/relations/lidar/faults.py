@@ -12,6 +12,7 @@ from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.faults import (
     PACKET_DEGREES,
+    QUANTIZATION_RANGE,
     CoveredObstaclesKept,
 )
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
@@ -76,6 +77,7 @@ def beam_loss(
 def packet_loss(
     *,
     max_packets: int = 10,
+    within_roi: bool = True,
     min_points: int = 30,
     min_share: float = 0.5,
     min_height_share: float = 0.8,
@@ -85,9 +87,9 @@ def packet_loss(
 ) -> MetamorphicRelation:
     """Lost packets (an azimuth block of every laser) lose no obstacle they leave well
     covered. The follow-up removes 1 to ``max_packets`` consecutive packets
-    (:data:`PACKET_DEGREES` each) starting at a drawn azimuth
-    (:func:`~pytest_metamorphic.strategies.lost_packets`). The check is
-    :class:`CoveredObstaclesKept`.
+    (:data:`PACKET_DEGREES` each) centred on a drawn bearing, by default one at which the
+    ROI holds returns (``within_roi``; :func:`~pytest_metamorphic.strategies.lost_packets`).
+    The check is :class:`CoveredObstaclesKept`.
     """
     _check_size(max_packets, "max_packets")
     relation = CoveredObstaclesKept(
@@ -99,14 +101,16 @@ def packet_loss(
     )
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
-        return lost_packets(_frame(frame), max_packets=max_packets)
+        return lost_packets(_frame(frame), max_packets=max_packets, within_roi=within_roi)
 
     return MetamorphicRelation(name, followup, relation)
 
 
 def range_quantization(
     *,
-    steps: Sequence[float] = (0.05, 0.1, 0.2),
+    steps: Sequence[float] | None = None,
+    min_step: float = QUANTIZATION_RANGE[0],
+    max_step: float = QUANTIZATION_RANGE[1],
     min_points: int = 30,
     min_height_share: float = 0.8,
     min_detected: float = 0.5,
@@ -114,15 +118,16 @@ def range_quantization(
     name: str = "ranges quantized => obstacles kept",
 ) -> MetamorphicRelation:
     """A coarser range resolution loses no obstacle: every return stays, its range rounded
-    to one of ``steps`` metres along its beam
-    (:func:`~pytest_metamorphic.strategies.quantized_ranges`, shrinking toward the finest).
+    along its beam to a step drawn in millimetres from ``min_step`` to ``max_step`` metres
+    (or to one of ``steps``; :func:`~pytest_metamorphic.strategies.quantized_ranges`,
+    shrinking toward the finest).
     The check is :class:`CoveredObstaclesKept` (nothing is dropped, so every judged
     obstacle of >= ``min_points`` points whose height span survives the rounding counts).
 
     Precondition (measured, tests): the reference pipeline and the whole-scene detector
     hold it with 5, 10 and 20 cm steps on all six KITTI sweeps and a rendered street.
     """
-    quantized_ranges(_PROBE, steps=steps)  # validate now
+    quantized_ranges(_PROBE, steps=steps, min_step=min_step, max_step=max_step)  # validate now
     relation = CoveredObstaclesKept(
         min_points=min_points,
         min_share=0.5,
@@ -132,6 +137,6 @@ def range_quantization(
     )
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
-        return quantized_ranges(_frame(frame), steps=steps)
+        return quantized_ranges(_frame(frame), steps=steps, min_step=min_step, max_step=max_step)
 
     return MetamorphicRelation(name, followup, relation)

@@ -17,7 +17,7 @@ def _blob(x: float, y: float, n: int, spread: float = 0.3) -> np.ndarray:
     """n points on a grid around (x, y), 0.5-1.5 m above the sensor's ground."""
     side = int(np.ceil(np.sqrt(n)))
     u, v = np.meshgrid(np.linspace(-spread, spread, side), np.linspace(-spread, spread, side))
-    xy = np.column_stack([u.ravel(), v.ravel()])[:n] + (x, y)
+    xy = np.column_stack([u.ravel(), v.ravel()])[:n] + np.array([x, y])
     return np.column_stack([xy, np.linspace(0.5, 1.5, n), np.zeros(n)]).astype(np.float32)
 
 

@@ -23,6 +23,7 @@ from pytest_metamorphic.lidar.model.obstacles import (
     SizePrior,
     bev_iou,
     center_distances,
+    points_in_boxes,
 )
 
 
@@ -208,3 +209,35 @@ def test_twins_are_equal_up_to_rounding_and_pair_one_to_one() -> None:
     assert unmatched_twins([car, car], [summed_otherwise]) == ([1], [])
     relabelled = Box(summed_otherwise.center, summed_otherwise.size, 0.3, "unknown")
     assert unmatched_twins([car], [relabelled]) == ([0], [0])
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-20, 20),
+            st.floats(-20, 20),
+            st.floats(0.1, 6),
+            st.floats(0.1, 3),
+            st.floats(-math.pi, math.pi),
+        ),
+        max_size=6,
+    ),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([0.0, 0.05, 0.1]),
+)
+def test_points_in_boxes_is_each_boxs_own_test(boxes, seed, grow) -> None:  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(seed)
+    xyz = rng.uniform(-25, 25, size=(3000, 3)).astype(np.float32)
+    xyz[:, 2] = rng.uniform(-2, 2, size=3000)
+    chosen = [Box((x, y, 0.0), (length, width, 1.5), yaw) for x, y, length, width, yaw in boxes]
+    # Points exactly on corners and faces, where a bounding-circle prefilter could cut.
+    corners = [c for box in chosen for c in box.grown(grow).corners_bev()]
+    if corners:
+        xyz[: len(corners), :2] = np.array(corners, dtype=np.float32)
+        xyz[: len(corners), 2] = 0.0
+    found = points_in_boxes(xyz, chosen, grow=grow)
+    for box, rows in zip(chosen, found, strict=True):
+        assert np.array_equal(rows, np.flatnonzero(box.grown(grow).contains(xyz)))
+    assert points_in_boxes(xyz, []) == []
+    assert [len(r) for r in points_in_boxes(np.empty((0, 3)), chosen)] == [0] * len(chosen)
