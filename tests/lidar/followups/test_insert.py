@@ -250,3 +250,29 @@ def test_templates_come_only_from_ground_truth() -> None:
     unlabelled = dataclasses.replace(frame, boxes=())
     assert object_templates(unlabelled) == []
     assert removal_candidates(unlabelled)  # removal may still use proposed objects
+
+
+def test_a_reduced_insertion_is_judged_only_while_it_spans_the_objects_height() -> None:
+    """The 30 lowest returns of a car are a slice of it, not "a car of 30 returns": the
+    check does not judge a set of returns spanning less than 80 % of the height all the
+    object's returns spanned, so a reduction cannot end on a slice (seen: a car 46 m away
+    reduced to its lowest 0.3 m)."""
+    frame = street()
+    template = _car_template()
+    insertion = InsertObject.onto(frame, template, free_placements(frame, template, limit=1)[0])
+    assert insertion.span == pytest.approx(float(np.ptp(insertion.points[:, 2])))
+    check = InsertedDetected()
+    context = CheckContext(frame, insertion.apply(frame), insertion.params(), 0)
+    assert not check.check([], [], context).holds  # nothing detected: the whole car is judged
+    lowest = insertion.restrict(np.argsort(insertion.points[:, 2])[:30])
+    assert lowest.span == insertion.span  # the reduction remembers the whole object
+    context = CheckContext(frame, lowest.apply(frame), lowest.params(), 0)
+    verdict = check.check([], [], context)
+    assert verdict.holds and "a slice of the object, not judged" in verdict.explanation
+    spread = insertion.restrict(np.argsort(insertion.points[:, 2])[:: max(1, len(insertion) // 30)])
+    context = CheckContext(frame, spread.apply(frame), spread.params(), 0)
+    assert not check.check([], [], context).holds  # top to bottom: still the car
+    again = InsertObject.from_json(lowest.to_json())
+    assert again.span == lowest.span
+    with pytest.raises(InvalidArgument, match="min_height_share"):
+        InsertedDetected(min_height_share=1.5)

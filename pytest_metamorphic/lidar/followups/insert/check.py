@@ -6,6 +6,7 @@ from typing import Any
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.lidar.followups.faults import _fraction
 from pytest_metamorphic.lidar.followups.insert.insertion import InsertObject
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.obstacles import as_boxes, share_inside
@@ -14,22 +15,31 @@ __all__ = ["InsertedDetected"]
 
 
 class InsertedDetected(Relation):
-    """The inserted object is detected: when it has at least ``min_points`` returns and
+    """The inserted object is detected: when it has at least ``min_points`` returns that
+    span at least ``min_height_share`` of the height all its cast returns spanned, and
     ``scope`` judges it, at least ``min_detected`` of its returns lie in follow-up
     obstacles (boxes grown by 10 cm, any label: a car seen from afar may come out as an
-    unknown object, and the check is about not missing it)."""
+    unknown object, and the check is about not missing it).
+
+    The height condition matters when a violation is reduced to fewer returns: the 30
+    lowest returns of a car 46 m away (a slice 0.3 m high, below any detector's minimum
+    obstacle height) are not "a car of 30 returns", and a reduction may not stop there
+    (the same rule as the fault relations' well-covered obstacles).
+    """
 
     def __init__(
-        self, *, min_points: int = 30, min_detected: float = 0.5, scope: ScopeLike = "roi"
+        self,
+        *,
+        min_points: int = 30,
+        min_detected: float = 0.5,
+        min_height_share: float = 0.8,
+        scope: ScopeLike = "roi",
     ) -> None:
         if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
             raise InvalidArgument(f"min_points={min_points!r} must be a positive int")
-        if isinstance(min_detected, bool) or not isinstance(min_detected, (int, float)):
-            raise InvalidArgument(f"min_detected={min_detected!r} must be a number in [0, 1]")
-        if not 0.0 <= min_detected <= 1.0:
-            raise InvalidArgument(f"min_detected={min_detected!r} must be a number in [0, 1]")
         self.min_points = min_points
-        self.min_detected = float(min_detected)
+        self.min_detected = _fraction(min_detected, "min_detected")
+        self.min_height_share = _fraction(min_height_share, "min_height_share")
         self.scope: ObstacleScope = as_scope(scope)
         self.name = (
             f"inserted object detected (>= {min_points} returns: >= {min_detected:.0%} of "
@@ -51,6 +61,17 @@ class InsertedDetected(Relation):
         if returns < self.min_points or not judged:
             details["judged"] = False
             return Verdict(True, self.name, "too few returns or not judged", details)
+        z = insertion.points[:, 2]
+        span = float(z.max() - z.min())
+        if insertion.span and span < self.min_height_share * insertion.span:
+            details["judged"] = False
+            return Verdict(
+                True,
+                self.name,
+                f"its returns span {span:.2f} m of the {insertion.span:.2f} m all its returns "
+                "spanned: a slice of the object, not judged",
+                details,
+            )
         share = share_inside(insertion.points[:, :3], as_boxes(followup_output, "follow-up"))
         details.update(judged=True, detected_share=round(share, 3))
         if share >= self.min_detected:

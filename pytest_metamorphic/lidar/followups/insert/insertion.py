@@ -59,6 +59,10 @@ class InsertObject:
         Where the hidden returns were (bird's eye).
     target_points : int
         How many points the target cloud has (checked by :meth:`apply`).
+    template : ObjectTemplate or None
+    span : float or None
+        The vertical extent (m) of all the returns cast onto the object, kept by
+        :meth:`restrict`: how much of the object a reduced set of returns still shows.
     """
 
     box: Box
@@ -69,6 +73,7 @@ class InsertObject:
     hidden_xy: NDArray[np.float64] = field(repr=False)
     target_points: int
     template: ObjectTemplate | None = field(default=None, repr=False)
+    span: float | None = field(default=None, repr=False)
 
     @classmethod
     def onto(
@@ -124,6 +129,7 @@ class InsertObject:
             xyz[hidden, :2],
             len(frame.cloud),
             template,
+            _span(points),
         )
 
     def __len__(self) -> int:
@@ -202,24 +208,33 @@ class InsertObject:
             "hidden_xy": self.hidden_xy.tolist(),
             "target_points": self.target_points,
             "template": None if self.template is None else self.template.describe(),
+            "span": self.span,
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> InsertObject:
         """The insertion :meth:`to_json` describes, without its template (artifacts replay
         with it)."""
+        points = np.asarray(data["points"], dtype=np.float32).reshape(-1, 4)
+        span = data.get("span")  # records of earlier versions have none: the returns' own
         return cls(
             Box.from_json(data["box"]),
-            np.asarray(data["points"], dtype=np.float32).reshape(-1, 4),
+            points,
             np.asarray(data["ring"], dtype=np.uint8),
             np.asarray(data["hidden"], dtype=np.intp),
             np.asarray(data["hidden_by"], dtype=np.intp),
             np.asarray(data["hidden_xy"], dtype=np.float64).reshape(-1, 2),
             int(data["target_points"]),
+            span=_span(points) if span is None else float(span),
         )
 
     def __repr__(self) -> str:
         return f"InsertObject({self.box.describe()}, {len(self.points)} returns)"
+
+
+def _span(points: NDArray[np.float32]) -> float:
+    """Vertical extent (m) of ``points``; 0 for none."""
+    return float(points[:, 2].max() - points[:, 2].min()) if len(points) else 0.0
 
 
 def _returns(

@@ -1,0 +1,92 @@
+"""Faulty variants of the reference pipeline: the ROI lookup and the ground estimate.
+
+See :mod:`pytest_metamorphic.lidar.systems.perception.mutants` for the list.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pytest_metamorphic.lidar.systems.perception.ground import ground_heights
+from pytest_metamorphic.lidar.systems.perception.mutants.inputs import _voxel_keys
+from pytest_metamorphic.lidar.systems.perception.pipeline import (
+    ReferencePerception,
+)
+
+__all__ = ["FullCloudGround", "FullCloudHeightCut", "GlobalGroundPlane", "RoiOffByOne"]
+
+
+class FullCloudGround(ReferencePerception):
+    """Ground heights estimated from the whole sweep, then applied to the ROI points.
+
+    Apollo's default ``use_full_cloud: true`` built the segmentation features from all
+    points, not only those in the ROI, so points far outside the ROI changed obstacles
+    inside it (Zhou & Sun's MR1 violations; Apollo issue #3341). Here the ground grid
+    sees points outside the ROI: a low point just outside lowers the ground under
+    objects near the ROI's edge.
+    """
+
+    name = "full_cloud_ground"
+
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
+    ) -> NDArray[np.float32]:
+        both = np.concatenate([points, sweep])
+        return ground_heights(both, self.params.ground)[: len(points)]
+
+
+class FullCloudHeightCut(ReferencePerception):
+    """Overhanging points cut at the sweep's 99th z percentile instead of above the ground.
+
+    A "robust" global threshold computed over the whole cloud: any point anywhere,
+    inside the ROI or not, moves it.
+    """
+
+    name = "full_cloud_height_cut"
+
+    def obstacle_mask(
+        self,
+        points: NDArray[np.float32],
+        ground_z: NDArray[np.float32],
+        sweep: NDArray[np.float32],
+    ) -> NDArray[np.bool_]:
+        cut = np.percentile(sweep[:, 2], 99.0)
+        above = points[:, 2] - ground_z
+        return (above >= self.params.ground.tolerance) & (points[:, 2] <= cut)
+
+
+class GlobalGroundPlane(ReferencePerception):
+    """One ground plane z = ax + by + c, least squares over the lowest point per 2 m cell.
+
+    Fitted on all points of the sweep rather than locally in the ROI.
+    """
+
+    name = "global_ground_plane"
+
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
+    ) -> NDArray[np.float32]:
+        _, inverse = np.unique(_voxel_keys(sweep[:, :2], 2.0), return_inverse=True)
+        lowest = np.full(inverse.max() + 1, np.inf)
+        np.minimum.at(lowest, inverse, sweep[:, 2])
+        pick = sweep[:, 2] == lowest[inverse]
+        x, y, z = (sweep[pick, i].astype(np.float64) for i in range(3))
+        design = np.column_stack([x, y, np.ones_like(x)])
+        (a, b, c), *_ = np.linalg.lstsq(design, z, rcond=None)
+        return (a * points[:, 0] + b * points[:, 1] + c).astype(np.float32)
+
+
+class RoiOffByOne(ReferencePerception):
+    """The ROI bitmap is looked up one cell off in x (``ix + 1``): an indexing slip."""
+
+    name = "roi_off_by_one"
+
+    def roi_mask(self, points: NDArray[np.float32], roi: Any) -> NDArray[np.bool_]:
+        if roi is None:
+            return np.ones(len(points), dtype=bool)
+        shifted = points[:, :2].astype(np.float64)
+        shifted[:, 0] += float(getattr(roi, "cell_size", 0.25))
+        return np.asarray(roi.contains(shifted, method=self.params.roi_method), dtype=np.bool_)
