@@ -71,9 +71,14 @@ CLAIMED = [
 ]
 
 
+# The streets the model was trained on: obstacles within 50 m (random_scene's default, as
+# in its training data); its grid covers 40 m, so farther obstacles are not claimed.
+STREETS = mst.scene_frames(mst.scenes(max_distance=50.0))
+
+
 @settings(max_examples=5, suppress_health_check=LIDAR, deadline=None)  # ~50 ms per call
 @metamorphic(
-    source=mst.scene_frames(),
+    source=STREETS,
     relations=CLAIMED,
     followups=1,
     batch=True,  # the source and its follow-ups go through the network as one batch
@@ -86,7 +91,7 @@ def test_mr1_catches_features_built_from_the_whole_sweep() -> None:
     # Derandomized: a test that asserts a fault is found must not depend on the seed.
     @settings(max_examples=40, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
-    @metamorphic(source=mst.scene_frames(), relations=[mr1_subset(matcher=LEARNED.kept)],
+    @metamorphic(source=STREETS, relations=[mr1_subset(matcher=LEARNED.kept)],
                  followups=2, batch=True)  # fmt: skip
     def check(frames: list[Frame]) -> list[list[Box]]:
         return full_cloud.detect_batch(frames)

@@ -42,6 +42,7 @@ from pytest_metamorphic.lidar.synthetic.layout import (
     BACKGROUND_ORDER,
     EGO_CLEARANCE,
     HEIGHT_STEPS,
+    MAX_DISTANCE,
     SITE_CHOICES,
     SLOT_CHOICES,
     ClutterSpec,
@@ -124,7 +125,7 @@ def scenes(
     labels: Sequence[Label] = LABELS,
     max_background: int = 6,
     shapes: Mapping[Label, Sequence[MeshShape]] | None = None,
-    max_distance: float = 50.0,
+    max_distance: float = MAX_DISTANCE,
 ) -> st.SearchStrategy[Scene]:
     """Small synthetic scenes: ROI, sensor height, obstacles on the road, clutter beside it.
 
@@ -144,7 +145,8 @@ def scenes(
     shapes : mapping of label to MeshShape list, optional
       User meshes (e.g. a car model file) drawn alongside the built-in shapes.
     max_distance : float
-      Farthest obstacle centre, metres.
+      Farthest obstacle centre, metres; by default 100 m, near the HDL-64E's 120 m
+      range (sensor faults and edits that act only far away are exercised too).
 
     Notes
     -----

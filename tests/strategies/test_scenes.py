@@ -13,6 +13,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.obstacles import SIZE_PRIORS
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.synthetic import MeshShape, Scene
+from pytest_metamorphic.lidar.synthetic.layout import MAX_DISTANCE
 from pytest_metamorphic.strategies import road_corridors, scene_frames, scenes
 from tests.deterministic import find
 from tests.lidar.synthetic.test_layout import check_placement
@@ -26,7 +27,7 @@ ROAD = ROI.from_polygons([[[-120, -6], [120, -6], [120, 6], [-120, 6]]])
 @settings(max_examples=25)
 @given(scene=scenes(max_obstacles=5, max_background=5))
 def test_scenes_place_objects_realistically(scene):
-    check_placement(scene)
+    check_placement(scene, max_distance=MAX_DISTANCE)
 
 
 def test_scenes_shrink_to_fewer_and_simpler_obstacles():

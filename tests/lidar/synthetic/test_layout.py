@@ -14,6 +14,7 @@ from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.synthetic import Scene
 from pytest_metamorphic.lidar.synthetic.layout import (
     EGO_CLEARANCE,
+    MAX_DISTANCE,
     ObstacleSpec,
     TooFewSlots,
     corridor_roi,
@@ -27,7 +28,7 @@ from pytest_metamorphic.lidar.synthetic.layout import (
 )
 
 
-def check_placement(scene: Scene, *, max_distance: float = 50.0) -> None:
+def check_placement(scene: Scene, *, max_distance: float) -> None:
     """Obstacles stand deep in the ROI, apart, clear of the ego car; clutter stays out."""
     assert 1.63 <= scene.sensor_height <= 1.90
     roi = scene.roi
@@ -78,7 +79,7 @@ def test_zero_choices_give_the_simplest_layouts() -> None:
 
 def test_layout_passes_taken_slots_on_and_refuses_too_many_obstacles() -> None:
     road = ROI.from_polygons([[[-120, -6], [120, -6], [120, 6], [-120, 6]]])
-    slots = obstacle_slots(road, 50.0)
+    slots = obstacle_slots(road, MAX_DISTANCE)  # layout_scene's default
     same_slot = [ObstacleSpec("car", 0, 0), ObstacleSpec("pedestrian", 0, 0)]
     scene = layout_scene(road, height_steps=0, obstacles=same_slot, clutter=[])
     centres = [box.center[:2] for box in scene.boxes]
@@ -90,7 +91,7 @@ def test_layout_passes_taken_slots_on_and_refuses_too_many_obstacles() -> None:
 @pytest.mark.parametrize("seed", range(12))
 def test_random_scenes_are_realistic(seed: int) -> None:
     scene = random_scene(np.random.default_rng(seed))
-    check_placement(scene)
+    check_placement(scene, max_distance=50.0)  # random_scene's default
     assert 1 <= len(scene.obstacles) <= 6
     assert len(scene.background) <= 6
 
