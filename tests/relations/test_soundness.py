@@ -136,7 +136,13 @@ DETECTORS = {"scikit-learn": SklearnDetector, "DBSCAN ties": TiesDetector}
 @pytest.mark.parametrize("name", sorted(DETECTORS))
 def test_every_relation_on_two_kitti_sweeps_and_a_rendered_street(name: str) -> None:
     frames = {"KITTI 1": labelled_kitti(1), "KITTI 4": labelled_kitti(4), "street": street()}
-    assert unexplained(violations(name, DETECTORS[name](), frames, examples=2)) == []
+    found = violations(name, DETECTORS[name](), frames, examples=2)
+    assert unexplained(found) == []
+    if name == "DBSCAN ties":  # the search does see violations: the known weakness shows
+        assert {item.frame for item in found if item.relation.startswith("points repeated")} == {
+            "KITTI 1",
+            "KITTI 4",
+        }
 
 
 @pytest.mark.slow
@@ -144,3 +150,9 @@ def test_every_relation_on_two_kitti_sweeps_and_a_rendered_street(name: str) -> 
 def test_every_relation_on_every_kitti_sweep(name: str) -> None:
     frames = {f"KITTI {i}": labelled_kitti(i) for i in range(6)} | {"street": street()}
     assert unexplained(violations(name, DETECTORS[name](), frames, examples=4)) == []
+
+
+def test_an_unnamed_violation_fails_the_module() -> None:
+    mine = Found("DBSCAN ties", "points reordered => O == O'", "KITTI 1", "{}", "lost")
+    known = Found("DBSCAN ties", "points repeated => O == O'", "KITTI 1", "{}", "new")
+    assert unexplained([mine, known]) == [str(mine)]
