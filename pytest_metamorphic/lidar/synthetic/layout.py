@@ -72,7 +72,7 @@ _JITTER_STEP = 0.25  # metres
 _JITTER_STEPS = 2  # up to +-0.5 m: slots stay >= 6.5 m apart, obstacles >= 0.9 m apart
 # Largest footprint radius of any prior (a 5.2 x 2.0 m car).
 _MAX_RADIUS = max(math.hypot(p.high[0], p.high[1]) / 2.0 for p in SIZE_PRIORS.values())
-_BACKGROUND_RANGE = 110.0
+_BACKGROUND_RANGE = 80.0
 #: Farthest obstacle centre of generated scenes by default (metres): near the HDL-64E's
 #: 120 m range, so what a detector does far away is exercised too.
 MAX_DISTANCE = 100.0
