@@ -88,7 +88,12 @@ def object_insertion(
     Precondition: a detector that finds an unoccluded object of >= 30 returns on free
     ground, and whose decisions about one object do not depend on objects farther away
     than ``clearance``. Holds for the reference and the whole-scene detector on all six
-    KITTI sweeps and a rendered street (tests).
+    KITTI sweeps and a rendered street (tests). Far away it tests the detector's ground
+    model: inserting the KITTI and street templates at 1-2x their range on every sweep
+    (84 insertions, 19 beyond 40 m), the reference missed one, a car 52 m away with 35
+    returns, whose lowest returns its grid ground (cell minima) took for the ground it
+    could not see around the car: a real limit of that ground model, which a search of
+    far placements finds.
     """
     check = InsertedDetected(min_points=min_points, min_detected=min_detected, scope=scope)
     relation = check & OthersKept(clearance=clearance, matcher=matcher, scope=scope)
