@@ -9,6 +9,12 @@ Staging (MATLAB/Simulink "Autonomous Emergency Braking with Sensor Fusion" examp
   ``TTC`` drops below the stopping time of that stage, ``v / a + 0.08 s``;
 * once braking, the stage only escalates until the car stands still.
 
+The controller knows its car (:attr:`Observation.max_deceleration`,
+:attr:`Observation.system_delay`): a stage's deceleration is capped at what the brakes
+can do and its stopping time includes the car's sensor latency and brake delay, as a
+production AEB calibrated for its vehicle does. On the ideal car (9.8 m/s^2, no delays)
+this is exactly MATLAB's staging.
+
 Most important object: the closest actor ahead whose centre lies in the car's corridor
 (and, when it stands still, only if it is in the car's swept path, so parked cars beside
 the lane are ignored). The reference controller takes the corridor from the map, i.e. the
@@ -110,11 +116,12 @@ class AEBController:
         return min(ahead, key=lambda track: track.headway, default=None)
 
     # -- staging ------------------------------------------------------------------------
-    def _stage_for(self, ttc: float, speed: float) -> str:
+    def _stage_for(self, ttc: float, speed: float, observation: Observation) -> str:
+        brakes, margin = observation.max_deceleration, self.time_margin + observation.system_delay
         stopping = {
-            "FB": speed / self.fb_deceleration + self.time_margin,
-            "PB2": speed / self.pb2_deceleration + self.time_margin,
-            "PB1": speed / self.pb1_deceleration + self.time_margin,
+            "FB": speed / min(self.fb_deceleration, brakes) + margin,
+            "PB2": speed / min(self.pb2_deceleration, brakes) + margin,
+            "PB1": speed / min(self.pb1_deceleration, brakes) + margin,
         }
         for stage in ("FB", "PB2", "PB1"):
             if ttc < stopping[stage]:
@@ -131,7 +138,7 @@ class AEBController:
             closing = speed - self.mio.vs
             if closing > 0:
                 self.ttc = self.mio.headway / closing
-        wanted = self._stage_for(self.ttc, speed)
+        wanted = self._stage_for(self.ttc, speed, observation)
         # Braking stages latch (escalate only; the car is held once stopped); a warning
         # alone may come and go.
         if self.stage in ("off", "FCW") or STAGES.index(wanted) > STAGES.index(self.stage):

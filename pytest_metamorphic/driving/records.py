@@ -34,6 +34,7 @@ LIMITS = {
     "vehicle.wheelbase": 30.0,
     "vehicle.max_deceleration": 50.0,
     "vehicle.brake_delay": 10.0,
+    "vehicle.sensor_latency": 10.0,
     "dummy_arrival_time": 3_600.0,
 }
 
@@ -49,6 +50,8 @@ def scenario_to_json(scenario: Scenario) -> dict[str, Any]:
             "width": road.width,
             "lanes": road.lanes,
             "margins": list(road.margins),
+            "parking": list(road.parking),
+            "sidewalks": list(road.sidewalks),
             "centerline": np.asarray(road.centerline, dtype=float).tolist(),
         },
         "ego_speed_kmh": scenario.ego_speed_kmh,
@@ -57,6 +60,7 @@ def scenario_to_json(scenario: Scenario) -> dict[str, Any]:
         "ego_lane": scenario.ego_lane,
         "dummy_speed_kmh": scenario.dummy_speed_kmh,
         "dummy_arrival_time": scenario.dummy_arrival_time,
+        "placement": scenario.placement,
         "vehicle": dataclasses.asdict(scenario.vehicle),
         "description": scenario.describe(),
     }
@@ -73,6 +77,7 @@ def _check_limits(data: Mapping[str, Any]) -> None:
         **{f"vehicle.{k}": vehicle.get(k) for k in ("length", "width", "wheelbase")},
         "vehicle.max_deceleration": vehicle.get("max_deceleration"),
         "vehicle.brake_delay": vehicle.get("brake_delay"),
+        "vehicle.sensor_latency": vehicle.get("sensor_latency"),
     }
     for key, value in values.items():
         if value is None:
@@ -125,6 +130,8 @@ def scenario_from_json(data: Mapping[str, Any]) -> Scenario:
                 road["lanes"],
                 road["name"],
                 tuple(road.get("margins", (0.0, 0.0))),
+                tuple(road.get("parking", (0.0, 0.0))),
+                tuple(road.get("sidewalks", (0.0, 0.0))),
             ),
             ego_speed_kmh=data["ego_speed_kmh"],
             conflict_s=data["conflict_s"],
@@ -133,6 +140,7 @@ def scenario_from_json(data: Mapping[str, Any]) -> Scenario:
             dummy_speed_kmh=data["dummy_speed_kmh"],
             vehicle=VehicleSpec(**data["vehicle"]),
             dummy_arrival_time=data.get("dummy_arrival_time"),
+            placement=data.get("placement", "protocol"),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as error:
         # ValueError covers the scenario's own InvalidArgument checks

@@ -9,7 +9,8 @@ same class, so the simulator and the AEB controller never care which one they ar
 Lanes are numbered from the right edge (lane 0 is the rightmost lane in the direction of
 the centreline; right-hand traffic), all equally wide. Strips of the carriageway that are
 not traffic lanes (cycle lanes, parking lanes: ``margins``) lie between the kerbs and the
-outermost lanes.
+outermost lanes; a parking lane (``parking``, part of the margin) lies at the kerb. Beyond
+each kerb a footway (``sidewalks``) or, where none is mapped, a verge.
 """
 
 from __future__ import annotations
@@ -47,6 +48,23 @@ def _margins(value: Any, width: float) -> tuple[float, float]:
     return right, left
 
 
+def _strips(value: Any, name: str, limit: tuple[float, float] | None) -> tuple[float, float]:
+    """A ``(right, left)`` pair of widths >= 0, each at most ``limit``'s when given."""
+    try:
+        right, left = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InvalidArgument(
+            f"{name}={value!r} must be a (right, left) pair of widths in metres"
+        ) from None
+    if not (math.isfinite(right) and math.isfinite(left) and right >= 0 and left >= 0):
+        raise InvalidArgument(f"{name}={value!r} must be finite widths >= 0")
+    if limit is not None and (right > limit[0] + 1e-9 or left > limit[1] + 1e-9):
+        raise InvalidArgument(
+            f"{name}={value!r}: a parking lane is part of the margin on its side, margins={limit!r}"
+        )
+    return right, left
+
+
 def _positive(value: Any, name: str) -> float:
     try:
         number = float(value)
@@ -76,6 +94,11 @@ class RoadGeometry:
         Widths in metres of the strips between the right / left kerb and the outermost
         traffic lane (cycle lanes, parking lanes; default none). They are part of the
         carriageway (a pedestrian there is on the road) but no lane.
+    parking : (float, float)
+        Widths of the parking lanes among the margins, at the right / left kerb (default
+        none): where parked cars stand.
+    sidewalks : (float, float)
+        Widths of the footways beyond the right / left kerb (default none: a verge).
 
     Notes
     -----
@@ -88,6 +111,8 @@ class RoadGeometry:
     lanes: int = 1
     name: str = ""
     margins: tuple[float, float] = (0.0, 0.0)
+    parking: tuple[float, float] = (0.0, 0.0)
+    sidewalks: tuple[float, float] = (0.0, 0.0)
     # Derived in __post_init__: segments as arrays (vectorised queries) and as lists (the
     # scalar fast path of point_at).
     _seg_start: NDArray[np.float64] = field(init=False, repr=False)
@@ -120,6 +145,8 @@ class RoadGeometry:
         if self.lanes < 1:
             raise InvalidArgument(f"lanes={self.lanes} must be >= 1")
         margins = _margins(self.margins, width)
+        object.__setattr__(self, "parking", _strips(self.parking, "parking", margins))
+        object.__setattr__(self, "sidewalks", _strips(self.sidewalks, "sidewalks", None))
         points.setflags(write=False)
         object.__setattr__(self, "margins", margins)
         object.__setattr__(self, "centerline", points)
@@ -151,6 +178,8 @@ class RoadGeometry:
         origin: Sequence[float] = (0.0, 0.0),
         name: str = "",
         margins: tuple[float, float] = (0.0, 0.0),
+        parking: tuple[float, float] = (0.0, 0.0),
+        sidewalks: tuple[float, float] = (0.0, 0.0),
     ) -> RoadGeometry:
         """A straight road of any width, from ``origin`` along ``heading`` (radians)."""
         length = _positive(length, "length")
@@ -161,7 +190,10 @@ class RoadGeometry:
             raise InvalidArgument(f"heading={heading!r} must be finite")
         direction = np.array([math.cos(heading), math.sin(heading)])
         label = name or f"straight {float(width):g} m road"
-        return cls(np.stack([start, start + length * direction]), width, lanes, label, margins)
+        return cls(
+            np.stack([start, start + length * direction]), width, lanes, label, margins,
+            parking, sidewalks,
+        )  # fmt: skip
 
     @classmethod
     def from_osm(
@@ -182,6 +214,8 @@ class RoadGeometry:
             road.lanes if lanes is None else lanes,
             road.name or f"way {road.way_id}",
             road.margins if margins is None else margins,
+            road.parking if margins is None else (0.0, 0.0),
+            road.sidewalks,
         )
 
     # -- measures ------------------------------------------------------------------------
@@ -204,6 +238,19 @@ class RoadGeometry:
         """Lateral offset ``d`` of a lane's centre line (0 = rightmost lane)."""
         right, left = self.lane_bounds(lane)
         return (right + left) / 2
+
+    def kerb(self, side: str) -> float:
+        """Lateral offset ``d`` of the ``"right"`` or ``"left"`` kerb (carriageway edge)."""
+        if side not in ("right", "left"):
+            raise InvalidArgument(f"side={side!r} must be 'right' or 'left'")
+        return -self.width / 2 if side == "right" else self.width / 2
+
+    def parking_lane(self, side: str) -> tuple[float, float] | None:
+        """``(d_low, d_high)`` of the parking lane at the ``side`` kerb, or None."""
+        kerb, width = self.kerb(side), self.parking[0 if side == "right" else 1]
+        if width <= 0:
+            return None
+        return (kerb, kerb + width) if side == "right" else (kerb - width, kerb)
 
     def lane_at(self, d: float) -> int | None:
         """Index of the lane containing lateral offset ``d``, or None outside the lanes
@@ -317,6 +364,10 @@ class RoadGeometry:
         strips = ""
         if any(self.margins):
             strips = ", margins {:g} / {:g} m".format(*self.margins)
+        if any(self.parking):
+            strips += " (parking {:g} / {:g} m)".format(*self.parking)
+        if any(self.sidewalks):
+            strips += ", sidewalks {:g} / {:g} m".format(*self.sidewalks)
         return (
             f"{label} ({kind}, {self.length:.0f} m, {self.width:.2f} m wide, "
             f"{self.lanes} lane(s){strips})"
@@ -336,6 +387,8 @@ class RoadGeometry:
             and self.width == other.width
             and self.lanes == other.lanes
             and self.margins == other.margins
+            and self.parking == other.parking
+            and self.sidewalks == other.sidewalks
             and self.name == other.name
             and self.centerline.shape == other.centerline.shape
             and bool((self.centerline == other.centerline).all())

@@ -38,7 +38,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.driving.placement import crossing_start, parked_lateral
 from pytest_metamorphic.driving.roads import RoadGeometry
+from pytest_metamorphic.driving.vehicle import EURO_NCAP_CAR, TYPICAL_CAR, VehicleSpec
 
 __all__ = [
     "ADULT",
@@ -48,7 +50,9 @@ __all__ = [
     "KINDS",
     "OBSTRUCTION_LARGE",
     "OBSTRUCTION_SMALL",
+    "PLACEMENTS",
     "PROTOCOLS",
+    "TYPICAL_CAR",
     "Footprint",
     "Keep",
     "PedestrianMotion",
@@ -62,6 +66,9 @@ __all__ = [
 
 KMH = 1 / 3.6
 Keep = Literal["ego_start", "time", "pedestrian"]
+Placement = Literal["protocol", "road"]
+#: Where a scenario's actors stand (:attr:`Scenario.placement`).
+PLACEMENTS: tuple[str, ...] = ("protocol", "road")
 #: What a speed follow-up keeps (:meth:`Scenario.with_ego_speed`).
 KEEP_MODES: tuple[str, ...] = ("ego_start", "time", "pedestrian")
 
@@ -82,40 +89,6 @@ CHILD = Footprint("child", 0.711, 0.298, 1.154)
 #: CPNCO obstruction vehicles (lengths 4.3-4.7 m / 4.1-4.4 m, widths 1.75-1.9 m allowed).
 OBSTRUCTION_LARGE = Footprint("obstruction (large)", 4.418, 1.82, 1.5)
 OBSTRUCTION_SMALL = Footprint("obstruction (small)", 4.316, 1.78, 1.45)
-
-
-@dataclass(frozen=True)
-class VehicleSpec:
-    """The car under test.
-
-    Parameters
-    ----------
-    length, width : float
-        Footprint in metres (default: the Euro NCAP reference car, 4.358 x 1.815 m).
-    wheelbase : float
-        Used to turn the body smoothly through polyline corners.
-    max_deceleration : float
-        The most the brakes can do, m/s^2 (9.8: the MATLAB example's full braking).
-    brake_delay : float
-        Dead time between a brake command and the deceleration, seconds.
-    """
-
-    length: float = 4.358
-    width: float = 1.815
-    wheelbase: float = 2.7
-    max_deceleration: float = 9.8
-    brake_delay: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("length", "width", "wheelbase", "max_deceleration"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InvalidArgument(f"VehicleSpec {name}={value!r} must be a positive number")
-        if not (math.isfinite(self.brake_delay) and self.brake_delay >= 0):
-            raise InvalidArgument(f"VehicleSpec brake_delay={self.brake_delay!r} must be >= 0")
-
-
-EURO_NCAP_CAR = VehicleSpec()
 
 
 @dataclass(frozen=True)
@@ -287,6 +260,11 @@ class Scenario:
     dummy_arrival_time : float, optional
         When (s after the start) the dummy reaches the impact position. None (the
         protocol): when the unbraked car's bumper does, ``time_to_collision_point``.
+    placement : {"protocol", "road"}
+        ``"protocol"``: the dummy and the parked cars where the protocol puts them
+        relative to the car's path (a test track). ``"road"``: where the road's
+        cross-section puts them (:mod:`~pytest_metamorphic.driving.placement`: a crossing
+        dummy starts beyond the kerb, parked cars stand in the parking lane).
     """
 
     kind: str
@@ -298,6 +276,7 @@ class Scenario:
     dummy_speed_kmh: float | None = None
     vehicle: VehicleSpec = field(default=EURO_NCAP_CAR)
     dummy_arrival_time: float | None = None
+    placement: Placement = "protocol"
 
     def __post_init__(self) -> None:
         if self.kind not in PROTOCOLS:
@@ -325,6 +304,10 @@ class Scenario:
                     f"dummy_arrival_time={self.dummy_arrival_time!r} must be > 0 seconds"
                 )
             object.__setattr__(self, "dummy_arrival_time", arrival)
+        if self.placement not in PLACEMENTS:
+            raise InvalidArgument(f"placement={self.placement!r} must be one of {list(PLACEMENTS)}")
+        if self.placement == "road" and self.protocol.obstructed:
+            parked_lateral(self.road, OBSTRUCTION_LARGE.width)  # a clear error now, not later
         object.__setattr__(self, "ego_speed_kmh", speed)
         object.__setattr__(self, "ego_distance", distance)
         object.__setattr__(self, "conflict_s", float(self.conflict_s))
@@ -363,6 +346,16 @@ class Scenario:
         return width * self.protocol.overlap / 100 - width / 2
 
     @property
+    def lateral_start(self) -> float:
+        """How far beside the car's path a crossing dummy starts (m): the protocol's ``E``,
+        or with ``placement="road"`` the distance to its start beyond the kerb."""
+        protocol = self.protocol
+        if self.placement == "protocol" or protocol.motion == "longitudinal":
+            return protocol.lateral_start
+        side = "right" if protocol.motion == "near" else "left"
+        return abs(crossing_start(self.road, side) - self.ego_offset)
+
+    @property
     def contact_s(self) -> float:
         """Arc length where the bumper first touches the dummy (no braking)."""
         return self.conflict_s - self.pedestrian().extent_along_road / 2
@@ -384,9 +377,9 @@ class Scenario:
             s0, ds, dd = self.conflict_s - walk, 1.0, 0.0
         else:
             sign = 1.0 if protocol.motion == "near" else -1.0
-            walk = protocol.lateral_start + self.impact_offset
+            walk = self.lateral_start + self.impact_offset
             s0, ds, dd = self.conflict_s, 0.0, sign
-            d0 = lateral_centre - sign * protocol.lateral_start
+            d0 = lateral_centre - sign * self.lateral_start
         motion = PedestrianMotion(
             protocol.dummy, s0, d0, ds, dd, speed, protocol.acceleration_distance, 0.0
         )
@@ -402,13 +395,17 @@ class Scenario:
         """CPNCO's two parked cars on the near side; empty for the other tests.
 
         The small car's front is 1 m before the dummy's path, the large car 1 m behind the
-        small one, both 1 m (lateral gap) beside the car under test.
+        small one, both 1 m (lateral gap) beside the car under test; with
+        ``placement="road"`` centred in the near-side parking lane instead.
         """
         if not self.protocol.obstructed:
             return ()
         small, large = OBSTRUCTION_SMALL, OBSTRUCTION_LARGE
         dummy = self.pedestrian()
-        lateral = self.ego_offset - (1.0 + self.vehicle.width / 2 + large.width / 2)
+        if self.placement == "road":
+            lateral = parked_lateral(self.road, large.width)
+        else:
+            lateral = self.ego_offset - (1.0 + self.vehicle.width / 2 + large.width / 2)
         small_front = self.conflict_s - dummy.extent_along_road / 2 - 1.0
         small_s = small_front - small.length / 2
         large_s = small_s - small.length / 2 - 1.0 - large.length / 2
@@ -452,17 +449,20 @@ class Scenario:
         timing = ""
         if self.dummy_arrival_time is not None:
             timing = f", dummy at the impact position at {self.dummy_arrival_time:.2f} s"
+        placed = " (actors placed by the road)" if self.placement == "road" else ""
         return (
             f"{self.kind} at {self.ego_speed_kmh:g} km/h on {self.road.name or 'a road'} "
             f"({self.road.width:g} m, lane {self.ego_lane} of {self.road.lanes}), car "
             f"{self.ego_distance:.1f} m / {self.time_to_collision_point:.2f} s from impact"
-            f"{timing}"
+            f"{timing}{placed}"
         )
 
     def __repr__(self) -> str:
         extra = "" if self.dummy_speed_kmh is None else f", dummy_speed_kmh={self.dummy_speed_kmh}"
         if self.dummy_arrival_time is not None:
             extra += f", dummy_arrival_time={self.dummy_arrival_time:g}"
+        if self.placement != "protocol":
+            extra += f", placement={self.placement!r}"
         return (
             f"Scenario({self.kind!r}, road={self.road!r}, ego_speed_kmh={self.ego_speed_kmh:g}, "
             f"conflict_s={self.conflict_s:g}, ego_distance={self.ego_distance:g}, "
@@ -484,6 +484,7 @@ class Scenario:
             and self.dummy_speed_kmh == other.dummy_speed_kmh
             and self.dummy_arrival_time == other.dummy_arrival_time
             and self.vehicle == other.vehicle
+            and self.placement == other.placement
         )
 
     def __hash__(self) -> int:
@@ -507,6 +508,7 @@ def euro_ncap(
     initial_ttc: float = INITIAL_TTC,
     dummy_speed_kmh: float | None = None,
     vehicle: VehicleSpec = EURO_NCAP_CAR,
+    placement: Placement = "protocol",
 ) -> Scenario:
     """A protocol scenario: the car starts ``initial_ttc`` (6 s) before the impact.
 
@@ -523,6 +525,10 @@ def euro_ncap(
         the car's start (and, for CPLA, the dummy's) to be on it, when the road allows.
     initial_ttc : float
         Seconds between the start and the impact at constant speed.
+    dummy_speed_kmh : float, optional
+    vehicle : VehicleSpec
+    placement : {"protocol", "road"}
+        See :class:`Scenario`.
     """
     road = euro_ncap_road() if road is None else road
     ttc = _finite(initial_ttc, "initial_ttc")
@@ -547,4 +553,5 @@ def euro_ncap(
         ego_lane=ego_lane,
         dummy_speed_kmh=dummy_speed_kmh,
         vehicle=vehicle,
+        placement=placement,
     )

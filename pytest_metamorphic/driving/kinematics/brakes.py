@@ -51,7 +51,12 @@ def as_command(output: Any) -> BrakeCommand:
 class Brakes:
     """Asks the controller each step, clips its request to the car's brakes, delays it by
     the car's ``brake_delay``, and records the step (time, speed, bumper position,
-    applied deceleration, stage changes, first brake request)."""
+    applied deceleration, stage changes, first brake request).
+
+    With a ``sensor_latency`` the controller is shown the observation made that many
+    seconds earlier (the first one until then): the whole frame is old, the car's own
+    speed included, as with a real perception stack.
+    """
 
     def __init__(
         self,
@@ -62,6 +67,8 @@ class Brakes:
         self.scenario, self.controller = scenario, controller
         self.max_deceleration = scenario.vehicle.max_deceleration
         self.pending = [0.0] * round(scenario.vehicle.brake_delay / dt)
+        self.latency_steps = round(scenario.vehicle.sensor_latency / dt)
+        self.seen: list[Observation] = []
         self.times: list[float] = []
         self.speeds: list[float] = []
         self.positions: list[float] = []
@@ -76,7 +83,7 @@ class Brakes:
         """The deceleration applied during the step that starts at ``t`` (m/s^2)."""
         command = BrakeCommand(0.0)
         if self.controller is not None:
-            command = as_command(self.controller(observe()))
+            command = as_command(self.controller(self._delayed(observe)))
         if command.stage and (not self.stages or self.stages[-1][1] != command.stage):
             self.stages.append((round(t, 9), command.stage))
         requested = min(max(command.deceleration, 0.0), self.max_deceleration)
@@ -90,6 +97,14 @@ class Brakes:
         self.positions.append(position)
         self.decelerations.append(applied)
         return applied
+
+    def _delayed(self, observe: Callable[[], Observation]) -> Observation:
+        if not self.latency_steps:
+            return observe()
+        self.seen.append(observe())
+        if len(self.seen) > self.latency_steps + 1:
+            self.seen.pop(0)
+        return self.seen[0]
 
     def result(
         self, collision: Collision | None, end_time: float, final_speed: float, ego_s: float

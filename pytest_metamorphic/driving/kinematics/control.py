@@ -78,6 +78,10 @@ class Observation:
     road_right, road_left : float
         The carriageway's edges relative to the car's path (m).
     tracks : tuple of Track
+    max_deceleration : float
+        What the car's brakes can do (m/s^2): a controller that knows its car plans with it.
+    system_delay : float
+        The car's sensor latency plus brake delay (s): how late braking takes effect.
     """
 
     time: float
@@ -90,6 +94,8 @@ class Observation:
     road_right: float
     road_left: float
     tracks: tuple[Track, ...]
+    max_deceleration: float = 9.8
+    system_delay: float = 0.0
 
 
 @dataclass(frozen=True)

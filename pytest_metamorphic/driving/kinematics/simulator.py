@@ -201,8 +201,9 @@ class _Run:
             )  # fmt: skip
         vehicle = self.scenario.vehicle
         return Observation(
-            t, self.dt, v, vehicle.length, vehicle.width, *self.lane, *self.edges, tuple(tracks)
-        )
+            t, self.dt, v, vehicle.length, vehicle.width, *self.lane, *self.edges, tuple(tracks),
+            max_deceleration=vehicle.max_deceleration, system_delay=vehicle.system_delay,
+        )  # fmt: skip
 
     def _contact(self, front_s: float, t: float, k: int | None) -> tuple[_Actor, Box] | None:
         centre_s = front_s - self.scenario.vehicle.length / 2

@@ -2,7 +2,8 @@
 
 One concept per module: :mod:`.reader` (expat with every way out of the document switched
 off, size caps against bz2 bombs), :mod:`.projection` (local metres about the data's
-centre), :mod:`.tags` (``width``, ``lanes``, ``oneway``, cycle and parking lanes, defaults),
+centre), :mod:`.tags` (``width``, ``lanes``, ``oneway``, cycle and parking lanes,
+sidewalks, defaults),
 :mod:`.roads` (drivable ways as :class:`Road` geometries) and :mod:`.graph` (street graphs
 for routing).
 
@@ -23,10 +24,13 @@ from pytest_metamorphic.driving.osm.tags import (
     DRIVABLE_HIGHWAYS,
     HIGHWAY_DEFAULTS,
     PARKING_LANE_WIDTHS,
+    SIDEWALK_WIDTH,
     HighwayDefaults,
     parse_lanes,
     parse_margins,
     parse_oneway,
+    parse_parking,
+    parse_sidewalks,
     parse_width,
 )
 
@@ -36,6 +40,7 @@ __all__ = [
     "EARTH_RADIUS_M",
     "HIGHWAY_DEFAULTS",
     "PARKING_LANE_WIDTHS",
+    "SIDEWALK_WIDTH",
     "HighwayDefaults",
     "LocalProjection",
     "OsmData",
@@ -47,6 +52,8 @@ __all__ = [
     "parse_lanes",
     "parse_margins",
     "parse_oneway",
+    "parse_parking",
+    "parse_sidewalks",
     "parse_width",
     "read_osm",
     "street_graph",

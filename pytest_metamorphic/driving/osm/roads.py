@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Literal
 
 import numpy as np
@@ -24,6 +26,8 @@ from pytest_metamorphic.driving.osm.tags import (
     parse_lanes,
     parse_margins,
     parse_oneway,
+    parse_parking,
+    parse_sidewalks,
     parse_width,
 )
 
@@ -60,6 +64,10 @@ class Road:
     margins : (float, float)
         Cycle and parking lanes on the carriageway, right / left of the direction of
         ``centerline`` (:func:`~pytest_metamorphic.driving.osm.tags.parse_margins`).
+    parking : (float, float)
+        The parking lanes among ``margins`` (at the kerbs; :func:`parse_parking`).
+    sidewalks : (float, float)
+        Footways beyond the right / left kerb (0: none mapped; :func:`parse_sidewalks`).
     """
 
     way_id: int
@@ -74,6 +82,8 @@ class Road:
     tags: Mapping[str, str]
     projection: LocalProjection
     margins: tuple[float, float] = (0.0, 0.0)
+    parking: tuple[float, float] = (0.0, 0.0)
+    sidewalks: tuple[float, float] = (0.0, 0.0)
 
     @property
     def length(self) -> float:
@@ -97,6 +107,22 @@ class Road:
 
     def __repr__(self) -> str:
         return f"Road(way_id={self.way_id}, {self.describe()})"
+
+    def with_tags(self, extra: Mapping[str, str]) -> Road:
+        """This way as if its tags also held ``extra`` (e.g. a parking lane the map lacks).
+
+        Width, lanes, cycle and parking lanes and sidewalks are derived again from the
+        merged tags; the geometry stays. Used to state a scenario's assumptions about a
+        street openly instead of editing the map.
+        """
+        if not isinstance(extra, Mapping) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in extra.items()
+        ):
+            raise InvalidArgument(f"extra={extra!r} must map tag names to tag values (str)")
+        tags = MappingProxyType({**self.tags, **extra})
+        oneway, reverse = parse_oneway(tags)
+        cross = _cross_section(tags, self.highway, oneway, reverse)
+        return dataclasses.replace(self, tags=tags, oneway=oneway, **cross)  # type: ignore[arg-type]
 
 
 def _highway_filter(highway: str | Iterable[str] | None) -> frozenset[str] | None:
@@ -181,6 +207,22 @@ def _road_width(
     return lanes * defaults.lane_width + sum(margins), lanes, source
 
 
+def _cross_section(
+    tags: Mapping[str, str], highway: str, oneway: bool, reverse: bool
+) -> dict[str, object]:
+    """A way's carriageway from its tags: width, lanes, margins, parking, sidewalks."""
+    margins = parse_margins(tags, oneway=oneway, reverse=reverse)
+    width, lanes, source = _road_width(tags, highway, oneway, margins)
+    return {
+        "width": float(width),
+        "lanes": int(lanes),
+        "width_source": source,
+        "margins": margins,
+        "parking": parse_parking(tags, reverse=reverse),
+        "sidewalks": parse_sidewalks(tags, reverse=reverse),
+    }
+
+
 def load_roads(
     path: str | Path,
     *,
@@ -227,22 +269,17 @@ def load_roads(
         lat = np.array([data.nodes[n].lat for n in node_ids])
         lon = np.array([data.nodes[n].lon for n in node_ids])
         highway_class = way.tags["highway"]
-        margins = parse_margins(way.tags, oneway=oneway, reverse=reverse)
-        width, lanes, source = _road_width(way.tags, highway_class, oneway, margins)
         roads.append(
             Road(
                 way_id=way.id,
                 name=way.tags.get("name") or way.tags.get("ref") or "",
                 highway=highway_class,
                 centerline=projection.to_local(lat, lon),
-                width=float(width),
-                lanes=int(lanes),
                 oneway=oneway,
-                width_source=source,  # type: ignore[arg-type]
                 node_ids=node_ids,
                 tags=way.tags,
                 projection=projection,
-                margins=margins,
+                **_cross_section(way.tags, highway_class, oneway, reverse),  # type: ignore[arg-type]
             )
         )
     return roads

@@ -13,10 +13,13 @@ __all__ = [
     "DRIVABLE_HIGHWAYS",
     "HIGHWAY_DEFAULTS",
     "PARKING_LANE_WIDTHS",
+    "SIDEWALK_WIDTH",
     "HighwayDefaults",
     "parse_lanes",
     "parse_margins",
     "parse_oneway",
+    "parse_parking",
+    "parse_sidewalks",
     "parse_width",
 ]
 
@@ -195,4 +198,43 @@ def parse_margins(
     those of the way's node order; ``reverse`` (``oneway=-1``, driven against it) swaps them.
     """
     right, left = (_cycle_lane(tags, side, oneway) + _parking_lane(tags, side) for side in _SIDES)
+    return (left, right) if reverse else (right, left)
+
+
+def parse_parking(tags: Mapping[str, str], *, reverse: bool = False) -> tuple[float, float]:
+    """Widths (m) of the parking lanes on the carriageway, ``(right, left)``.
+
+    The part of :func:`parse_margins` that is parking; a parking lane lies at the kerb,
+    outside any cycle lane (the usual "door zone" layout). Sides as in
+    :func:`parse_margins`.
+    """
+    right, left = (_parking_lane(tags, side) for side in _SIDES)
+    return (left, right) if reverse else (right, left)
+
+
+#: Width of a footway beside the carriageway when ``sidewalk:*:width`` is not tagged (m;
+#: the common minimum clear width, 1.8 m in the German EFA and 5 ft = 1.5 m plus buffer in
+#: the US; we take 2.0 m).
+SIDEWALK_WIDTH = 2.0
+
+
+def _sidewalk(tags: Mapping[str, str], side: str) -> float:
+    value = _side_value(tags, "sidewalk", side)
+    if not value:
+        plain = tags.get("sidewalk", "").strip().lower()
+        value = "yes" if plain in ("both", side, "yes") else ""
+    if value not in ("yes", "both", side):
+        return 0.0  # no, separate (mapped as its own way), none
+    width = parse_width(tags.get(f"sidewalk:{side}:width") or tags.get("sidewalk:both:width"))
+    return SIDEWALK_WIDTH if width is None else width
+
+
+def parse_sidewalks(tags: Mapping[str, str], *, reverse: bool = False) -> tuple[float, float]:
+    """Widths (m) of the footways beyond the right and left kerb (0: none mapped, a verge).
+
+    ``sidewalk=both|right|left|yes``, ``sidewalk:<side>=yes``, ``sidewalk:both=yes``;
+    widths from ``sidewalk:<side>:width``, else :data:`SIDEWALK_WIDTH`. ``separate`` (a
+    footway mapped as its own way) and ``no`` count 0. Sides as in :func:`parse_margins`.
+    """
+    right, left = (_sidewalk(tags, side) for side in _SIDES)
     return (left, right) if reverse else (right, left)

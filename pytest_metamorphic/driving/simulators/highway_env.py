@@ -186,6 +186,7 @@ class _Run:
         return Observation(
             t, self.dt, float(self.car.speed), vehicle.length, vehicle.width,
             *self.lane, *self.edges, tuple(tracks),
+            max_deceleration=vehicle.max_deceleration, system_delay=vehicle.system_delay,
         )  # fmt: skip
 
     def _collision(self, t: float, front_s: float) -> Collision | None:
