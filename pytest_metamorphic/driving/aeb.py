@@ -35,7 +35,14 @@ from typing import Literal
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.kinematics import BrakeCommand, Observation, Track, is_relevant
 
-__all__ = ["STAGES", "AEBController", "mutant_fixed_lane", "reference_controller"]
+__all__ = [
+    "STAGES",
+    "AEBController",
+    "TTCController",
+    "mutant_fixed_lane",
+    "reference_controller",
+    "ttc_controller",
+]
 
 #: Stage names, in escalation order.
 STAGES = ("off", "FCW", "PB1", "PB2", "FB")
@@ -159,3 +166,70 @@ def reference_controller() -> AEBController:
 def mutant_fixed_lane(lane_width: float = 3.6) -> AEBController:
     """The faulty AEB Iqbal found: the MIO corridor assumes a ``lane_width`` m lane."""
     return AEBController(lane_width=lane_width)
+
+
+@dataclass
+class TTCController:
+    """A second, independently designed AEB: time to collision with a predicted path.
+
+    No staging and no corridor: every actor's lateral position is extrapolated at its
+    current velocity over the interval in which the car would overlap it along the road
+    (from the bumper reaching its near face until the car's rear passes its far face). When
+    that predicted band comes within ``lateral_margin`` of the car's body and the time to
+    reach the actor is below the car's own stopping time (its brakes and delays from the
+    observation) plus ``time_margin``, it brakes fully and holds the brakes until the car
+    stands. Standing actors beside the path never trigger it; a pedestrian walking towards
+    the path does before it arrives, wherever on the road it walks.
+
+    Parameters
+    ----------
+    lateral_margin : float
+        Metres of clearance wanted beside the car's body.
+    time_margin : float
+        Seconds added to the stopping time.
+    """
+
+    lateral_margin: float = 0.3
+    time_margin: float = 0.3
+    braking: bool = field(default=False, init=False)
+
+    def __post_init__(self) -> None:
+        for name in ("lateral_margin", "time_margin"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InvalidArgument(f"{name}={value!r} must be a number >= 0")
+
+    def reset(self) -> None:
+        self.braking = False
+
+    def threatens(self, track: Track, observation: Observation) -> float | None:
+        """Seconds until the bumper reaches ``track`` if its predicted path meets the car's."""
+        closing = observation.ego_speed - track.vs
+        if closing <= 0 or track.s + track.length / 2 < 0:
+            return None
+        reach = max(track.headway, 0.0) / closing
+        leave = (track.headway + track.length + observation.ego_length) / closing
+        lows = track.d + track.vd * reach, track.d + track.vd * leave
+        low, high = min(lows) - track.width / 2, max(lows) + track.width / 2
+        half = observation.ego_width / 2 + self.lateral_margin
+        return reach if high >= -half and low <= half else None
+
+    def __call__(self, observation: Observation) -> BrakeCommand:
+        speed = observation.ego_speed
+        stopping = speed / observation.max_deceleration + observation.system_delay
+        if not self.braking:
+            for track in observation.tracks:
+                reach = self.threatens(track, observation)
+                if reach is not None and reach < stopping + self.time_margin:
+                    self.braking = True
+                    break
+        return (
+            BrakeCommand(observation.max_deceleration, "FB")
+            if self.braking
+            else BrakeCommand(0.0, "off")
+        )
+
+
+def ttc_controller() -> TTCController:
+    """The independent TTC-based AEB (a correct design unlike the MATLAB staging)."""
+    return TTCController()
