@@ -4,8 +4,10 @@ Nobody can say exactly how an AEB should brake in every Euro NCAP pedestrian tes
 every road, but one relation must hold: **if the car avoided the pedestrian, it still
 avoids it when it drives at another speed** and the pedestrian is re-timed so that, without
 braking, they would still meet at the same point. The only excuse is physics: a collision
-that even full braking, from the moment the pedestrian became relevant, could not have
-avoided (``physically_avoidable``). Iqbal found with this relation that an AEB assumed a
+that even full braking, from the moment the pedestrian became a hazard (visible, on the
+carriageway, walking towards the car's path) and after the car's own delays, could not
+have avoided; an independent judge decides that from the scenario alone
+(``pytest_metamorphic.driving.judge.judge_avoidable``). Iqbal found with this relation that an AEB assumed a
 3.6 m lane on a 10 m road; the second test below shows it catching exactly that fault.
 
 Copy this file to test your own AEB: make ``my_aeb`` return your controller. It is
@@ -68,7 +70,7 @@ def test_speed_relation_catches_a_hard_coded_lane_width() -> None:
         faulty()
     verdict = info.value.verdict
     # Not a physics excuse: full braking would have stopped the car in time.
-    assert "avoidable: relevant at" in verdict.explanation
+    assert "avoidable: a hazard at" in verdict.explanation
     (details,) = (d for name, d in verdict.details.items() if name.startswith("avoided"))
     assert details["physically_avoidable"] is True
     # The fault only matters where the real lane is wider than the assumed 3.6 m.

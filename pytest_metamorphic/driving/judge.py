@@ -13,11 +13,11 @@ answers from the :class:`~pytest_metamorphic.driving.scenario.Scenario` alone:
   bumper and within 100 m; and
 * *in the car's way*, by one of three stated standards (``relevance``):
 
-  - ``"carriageway"`` (default): its body is on the carriageway (kerb to kerb, from the
-    road) and it walks towards the car's path: the moment a pedestrian stepping off the
-    kerb towards the car is recognisable as crossing;
-  - ``"lane"``: its body overlaps the car's lane (the lane's real boundaries): later on
-    wide roads, so fewer collisions count as avoidable;
+  - ``"carriageway"`` (default): its centre is on the carriageway (kerb to kerb, from the
+    road: it has stepped onto the road) and it walks towards the car's path: the moment a
+    pedestrian stepping off the kerb towards the car is recognisable as crossing;
+  - ``"lane"``: its centre is inside the car's lane (the lane's real boundaries): later
+    on wide roads, so fewer collisions count as avoidable;
   - ``"path"``: its body overlaps the car's swept path (the car's width along its path),
     the laxest standard for the car.
 
@@ -89,6 +89,12 @@ class Judgement:
     standard: str
 
     def describe(self) -> str:
+        if not self.avoidable and self.standard.endswith("passes first"):
+            return (
+                f"unavoidable by braking: a hazard at t={self.relevant_time:.2f} s, braking "
+                f"from {self.brake_time:.2f} s misses the pedestrian only by passing before "
+                f"it arrives ({self.standard.removesuffix(', passes first')})"
+            )
         if self.relevant_time is None:
             return (
                 "unavoidable: the pedestrian was never visible and in the car's way before "
@@ -96,7 +102,7 @@ class Judgement:
             )
         when = f"a hazard at t={self.relevant_time:.2f} s, braking from {self.brake_time:.2f} s"
         if self.avoidable and self.gap < 0:
-            return f"avoidable: {when} lets the pedestrian clear the car's path ({self.standard})"
+            return f"avoidable: {when} lets the pedestrian cross first ({self.standard})"
         if self.avoidable:
             return f"avoidable: {when} stops {self.gap:.2f} m short ({self.standard})"
         return f"unavoidable: {when} still hits at {-self.gap / KMH:.1f} km/h ({self.standard})"
@@ -171,17 +177,15 @@ def judge_avoidable(
     path = scenario.ego_offset
     if relevance == "carriageway":
         road = scenario.road
-        on_road = _overlap(
-            ped_d - half_across, ped_d + half_across, -road.width / 2, road.width / 2
-        )
+        on_road = np.abs(ped_d) <= road.width / 2  # its centre: it has stepped onto the road
         lateral = np.gradient(ped_d, _STEP)
         in_way = on_road & (lateral * (path - ped_d) > 1e-3)
+    elif relevance == "lane":
+        lane_low, lane_high = scenario.road.lane_bounds(scenario.ego_lane)
+        in_way = (ped_d >= lane_low) & (ped_d <= lane_high)  # its centre has stepped in
     else:
-        if relevance == "lane":
-            way_low, way_high = scenario.road.lane_bounds(scenario.ego_lane)
-        else:
-            way_low, way_high = path - vehicle.width / 2, path + vehicle.width / 2
-        in_way = _overlap(ped_d - half_across, ped_d + half_across, way_low, way_high)
+        half = vehicle.width / 2
+        in_way = _overlap(ped_d - half_across, ped_d + half_across, path - half, path + half)
     cruise_front = start + speed * times
     visible = _visible(scenario, times, cruise_front, ped_s, ped_d, half_along, half_across)
     hazard = np.flatnonzero(in_way & visible)
@@ -214,7 +218,30 @@ def judge_avoidable(
         )
     stopped = int(np.argmax(~moving)) if (~moving).any() else len(times) - 1
     gap = float(ped_s[stopped] - half_along - front[stopped])
+    if gap < 0 and not _crossed_first(scenario, front, ped_s, ped_d, half_along, half_across):
+        # The braking car still reached the crossing before the pedestrian: it missed only
+        # because it passed first, which braking cannot be credited with.
+        return Judgement(False, relevant, visible_time, brake, 0.0, standard + ", passes first")
     return Judgement(True, relevant, visible_time, brake, gap, standard)
+
+
+def _crossed_first(
+    scenario: Scenario,
+    front: NDArray,
+    ped_s: NDArray,
+    ped_d: NDArray,
+    half_along: float,
+    half_across: float,
+) -> bool:
+    """Whether the pedestrian was clear beyond the car's path when the car reached its line."""
+    reached = np.flatnonzero(front >= ped_s - half_along)
+    direction = scenario.pedestrian().dd
+    if not len(reached) or abs(direction) < 0.5:
+        return True
+    k, path, half = int(reached[0]), scenario.ego_offset, scenario.vehicle.width / 2
+    if direction > 0:
+        return bool(ped_d[k] - half_across >= path + half)
+    return bool(ped_d[k] + half_across <= path - half)
 
 
 def _contacts(

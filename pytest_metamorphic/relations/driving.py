@@ -8,7 +8,9 @@ scenario. Relations:
 
 * :func:`avoided_stays_avoided` -- a collision avoided in the source stays avoided in the
   follow-up, unless the follow-up's collision was physically unavoidable (at a higher
-  speed the same warning time may simply not be enough to stop; see
+  speed the same warning time may simply not be enough to stop), judged from the scenario
+  alone by :func:`~pytest_metamorphic.driving.judge.judge_avoidable` (or, with
+  ``judge="simulated"``, by ideal braking in the built-in simulator,
   :func:`~pytest_metamorphic.driving.kinematics.physically_avoidable`);
 * :func:`impact_speed_monotone` -- approaching more slowly never raises the impact speed
   (an avoided collision counts as 0 km/h).
@@ -23,6 +25,7 @@ from typing import Any, Literal
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.driving.judge import RELEVANCE_STANDARDS, Judgement, judge_avoidable
 from pytest_metamorphic.driving.kinematics import (
     Avoidability,
     Sensor,
@@ -57,23 +60,30 @@ class AvoidedStaysAvoided(Relation):
     ----------
     excuse_unavoidable : bool
         Do not blame the system for a follow-up collision that no braking could have
-        avoided (:func:`physically_avoidable` with ``slack``). With False the relation is
-        Iqbal's literal MR, which a perfect AEB also violates at high enough speeds.
+        avoided. With False the relation is Iqbal's literal MR, which a perfect AEB also
+        violates at high enough speeds.
+    judge : {"scenario", "simulated"}
+        Who decides avoidability: :func:`~pytest_metamorphic.driving.judge.judge_avoidable`
+        from the scenario alone (default; shares no code with controllers or simulator),
+        or :func:`physically_avoidable` (ideal braking in the built-in simulator).
     slack : float
-        Seconds of grace after the pedestrian becomes relevant (see
-        :func:`physically_avoidable`).
-    relevance : {"lane", "road"}
-        When the pedestrian starts to count (see :func:`physically_avoidable`).
+        Seconds of grace after the pedestrian becomes relevant (the scenario judge's
+        ``decision_time``; :func:`physically_avoidable`'s ``slack``).
+    relevance : str, optional
+        When the pedestrian starts to count: the scenario judge's ``"carriageway"``
+        (default), ``"lane"`` or ``"path"``; the simulated judge's ``"road"`` (default) or
+        ``"lane"``.
     sensor : Sensor, optional
-        The sensor model the system under test used (for the relevance of the pedestrian).
+        The sensor model the system under test used (simulated judge only).
     """
 
     def __init__(
         self,
         *,
         excuse_unavoidable: bool = True,
+        judge: Literal["scenario", "simulated"] = "scenario",
         slack: float = 0.1,
-        relevance: Literal["lane", "road"] = "road",
+        relevance: str | None = None,
         sensor: Sensor | None = None,
     ) -> None:
         if not isinstance(excuse_unavoidable, bool):
@@ -82,8 +92,15 @@ class AvoidedStaysAvoided(Relation):
             raise InvalidArgument(f"slack={slack!r} must be a number >= 0")
         if sensor is not None and not isinstance(sensor, Sensor):
             raise InvalidArgument(f"sensor={sensor!r} must be a Sensor")
-        if relevance not in ("lane", "road"):
-            raise InvalidArgument(f"relevance={relevance!r} must be 'lane' or 'road'")
+        if judge not in ("scenario", "simulated"):
+            raise InvalidArgument(f"judge={judge!r} must be 'scenario' or 'simulated'")
+        allowed = RELEVANCE_STANDARDS if judge == "scenario" else ("road", "lane")
+        relevance = allowed[0] if relevance is None else relevance
+        if relevance not in allowed:
+            raise InvalidArgument(
+                f"relevance={relevance!r} must be one of {list(allowed)} for judge={judge!r}"
+            )
+        self.judge = judge
         self.relevance = relevance
         self.excuse_unavoidable = excuse_unavoidable
         self.slack = float(slack)
@@ -106,11 +123,21 @@ class AvoidedStaysAvoided(Relation):
         assert followup.collision is not None
         details["location"] = followup.collision.location
         details["impact_speed_kmh"] = followup.collision.impact_speed_kmh
-        avoidability: Avoidability | None = None
-        if self.excuse_unavoidable:
-            avoidability = physically_avoidable(
-                followup.scenario, slack=self.slack, relevance=self.relevance, sensor=self.sensor
+        avoidability: Avoidability | Judgement | None = None
+        if self.excuse_unavoidable and self.judge == "scenario":
+            avoidability = judge_avoidable(
+                followup.scenario,
+                relevance=self.relevance,
+                decision_time=self.slack,  # type: ignore[arg-type]
             )
+        elif self.excuse_unavoidable:
+            avoidability = physically_avoidable(
+                followup.scenario,
+                slack=self.slack,
+                relevance=self.relevance,
+                sensor=self.sensor,  # type: ignore[arg-type]
+            )
+        if avoidability is not None:
             details["physically_avoidable"] = avoidability.avoidable
             details["relevant_time"] = avoidability.relevant_time
             if not avoidability.avoidable:
@@ -128,8 +155,9 @@ class AvoidedStaysAvoided(Relation):
 def avoided_stays_avoided(
     *,
     excuse_unavoidable: bool = True,
+    judge: Literal["scenario", "simulated"] = "scenario",
     slack: float = 0.1,
-    relevance: Literal["lane", "road"] = "road",
+    relevance: str | None = None,
     sensor: Sensor | None = None,
 ) -> AvoidedStaysAvoided:
     """Iqbal's MR: an avoided collision stays avoided when the car's speed changes.
@@ -137,7 +165,11 @@ def avoided_stays_avoided(
     See :class:`AvoidedStaysAvoided`.
     """
     return AvoidedStaysAvoided(
-        excuse_unavoidable=excuse_unavoidable, slack=slack, relevance=relevance, sensor=sensor
+        excuse_unavoidable=excuse_unavoidable,
+        judge=judge,
+        slack=slack,
+        relevance=relevance,
+        sensor=sensor,
     )
 
 
@@ -194,6 +226,7 @@ def speed_relation(
     step_kmh: float = 1.0,
     keep: Keep = "ego_start",
     excuse_unavoidable: bool = True,
+    judge: Literal["scenario", "simulated"] = "scenario",
     slack: float = 0.1,
     tolerance_kmh: float = 1.0,
     sensor: Sensor | None = None,
@@ -226,7 +259,7 @@ def speed_relation(
 
     followup.__name__ = "ego_speed_changes"
     check: Relation = avoided_stays_avoided(
-        excuse_unavoidable=excuse_unavoidable, slack=slack, sensor=sensor
+        excuse_unavoidable=excuse_unavoidable, judge=judge, slack=slack, sensor=sensor
     )
     if keep != "pedestrian":
         check = check & impact_speed_monotone(tolerance_kmh=tolerance_kmh)

@@ -17,7 +17,11 @@ folder per violating follow-up under ``mt-artifacts/aeb-campaign/`` (``--artifac
                           OpenSCENARIO 1.2 + OpenDRIVE for esmini or CARLA (openscenario
                           extra), validated against the ASAM schema by the tests
 
-``--replay FOLDER`` re-runs a saved violation with the same controller and simulator.
+``--start``, ``--deceleration``, ``--brake-delay``, ``--latency`` set the car's start and
+the car (default: 6 s and the typical car); ``--sensitivity`` runs the campaign over
+their ranges instead (:mod:`~pytest_metamorphic.driving.sensitivity`) and prints where
+each controller stays clean. ``--replay FOLDER`` re-runs a saved violation with the same
+controller and simulator.
 Folders are written atomically (complete or absent), each as soon as its violation is
 found, so an interrupted campaign keeps what it found.
 """
@@ -34,18 +38,25 @@ from typing import Any
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.core.files import read_json
-from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.campaign import (
+    CONTROLLERS,
     CampaignCollision,
     CampaignSource,
     default_sources,
     format_campaign,
     iqbal_campaign,
 )
+from pytest_metamorphic.driving.judge import RELEVANCE_STANDARDS
 from pytest_metamorphic.driving.kinematics import SimulationResult
 from pytest_metamorphic.driving.records import scenario_from_json, scenario_to_json
 from pytest_metamorphic.driving.scenario import KEEP_MODES, PROTOCOLS, Scenario
+from pytest_metamorphic.driving.sensitivity import (
+    format_sensitivity,
+    sensitivity_campaign,
+    sensitivity_settings,
+)
 from pytest_metamorphic.driving.simulators import Simulator, check_simulator, run_simulator
+from pytest_metamorphic.driving.vehicle import TYPICAL_CAR, VehicleSpec
 from pytest_metamorphic.reports.aeb_artifacts import write_aeb_files
 from pytest_metamorphic.reports.artifacts import _slug, write_folder_atomically
 from pytest_metamorphic.reports.inputs import RECORD
@@ -61,11 +72,6 @@ __all__ = [
 FORMAT = "pytest-metamorphic AEB campaign violation"
 VERSION = 1
 DEFAULT_FOLDER = Path("mt-artifacts") / "aeb-campaign"
-#: The controllers of the default campaign, by the names the table and records use.
-CONTROLLERS: Mapping[str, Callable[[], Any]] = {
-    "reference": reference_controller,
-    "3.6 m lane mutant": mutant_fixed_lane,
-}
 _KEEP_TITLES = {
     "pedestrian": "car start and pedestrian timing kept",
     "ego_start": "car start kept, pedestrian re-timed",
@@ -118,8 +124,15 @@ def write_campaign_violation(
             ),
             "avoidability": {
                 "avoidable": avoidability.avoidable,
+                "standard": avoidability.standard,
+                "visible_time": avoidability.visible_time,
                 "relevant_time": avoidability.relevant_time,
+                "brake_time": avoidability.brake_time,
                 "gap": avoidability.gap,
+                "avoidable_by_lane_standard": (
+                    None if collision.in_lane is None else collision.in_lane.avoidable
+                ),
+                "avoided_with_the_pedestrian_retimed": collision.retimed_avoided,
             },
             "source": scenario_to_json(source.scenario),
             "followup": scenario_to_json(followup),
@@ -236,9 +249,30 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-speed", type=int, default=100, help="highest follow-up km/h")
     parser.add_argument(
         "--relevance",
-        choices=("lane", "road"),
-        default="road",
-        help="the pedestrian counts from stepping onto the road (default) or into the lane",
+        choices=RELEVANCE_STANDARDS,
+        default="carriageway",
+        help="the judge's standard: the pedestrian is a hazard once it walks on the "
+        "carriageway towards the car's path (default), enters its lane, or its swept path",
+    )
+    car = parser.add_argument_group("the car and its start (defaults: the typical car)")
+    car.add_argument(
+        "--start",
+        type=float,
+        default=6.0,
+        help="seconds from the car's start to the collision point",
+    )
+    car.add_argument(
+        "--deceleration", type=float, default=TYPICAL_CAR.max_deceleration, help="peak m/s^2"
+    )
+    car.add_argument("--brake-delay", type=float, default=TYPICAL_CAR.brake_delay, help="seconds")
+    car.add_argument(
+        "--latency", type=float, default=TYPICAL_CAR.sensor_latency, help="sensor latency, seconds"
+    )
+    parser.add_argument(
+        "--sensitivity",
+        action="store_true",
+        help="run the campaign over the ranges of start, brake delay, deceleration and "
+        "latency (one at a time around the car above) and print the range; no artifacts",
     )
     parser.add_argument(
         "--simulator",
@@ -268,6 +302,20 @@ def _replay(folder: Path, simulator: Simulator) -> int:
     return 1 if still else 0
 
 
+def _sensitivity(
+    args: argparse.Namespace, vehicle: VehicleSpec, simulator: Simulator, speeds: range
+) -> int:
+    settings = sensitivity_settings(initial_ttc=args.start, vehicle=vehicle)
+    for kind, keep in itertools.product(args.kind or ["CPNCO-50"], args.keep or ["pedestrian"]):
+        title = f"{kind}, source {args.source_speed:g} km/h, {_KEEP_TITLES[keep]}: sensitivity"
+        results = sensitivity_campaign(
+            args.data, kind=kind, settings=settings, speeds_kmh=speeds, keep=keep,
+            relevance=args.relevance, simulator=simulator,
+        )  # fmt: skip
+        print(f"{title}\n{'=' * len(title)}\n{format_sensitivity(results)}\n")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: run the campaign, print the tables, save the violations."""
     args = _parser().parse_args(argv)
@@ -275,9 +323,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.replay is not None:
         return _replay(args.replay, simulator)
     speeds = range(args.min_speed, args.max_speed + 1)
+    try:
+        vehicle = VehicleSpec(
+            max_deceleration=args.deceleration, brake_delay=args.brake_delay,
+            sensor_latency=args.latency,
+        )  # fmt: skip
+    except InvalidArgument as error:
+        raise SystemExit(f"error: {error}") from None
+    if args.sensitivity:
+        return _sensitivity(args, vehicle, simulator, speeds)
     written: list[Path] = []
     for kind, keep in itertools.product(args.kind or ["CPNCO-50"], args.keep or ["pedestrian"]):
-        sources = default_sources(args.data, kind=kind, speed_kmh=args.source_speed)
+        sources = default_sources(
+            args.data, kind=kind, speed_kmh=args.source_speed, initial_ttc=args.start,
+            vehicle=vehicle,
+        )  # fmt: skip
         folder = args.artifacts / _slug(f"{kind}-{keep}")
         on_violation = None
         if not args.no_artifacts:
@@ -293,10 +353,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             simulator=simulator,
             on_violation=on_violation,
         )
-        title = f"{kind}, source {args.source_speed:g} km/h, {_KEEP_TITLES[keep]}"
+        title = (
+            f"{kind}, source {args.source_speed:g} km/h, {_KEEP_TITLES[keep]}, start "
+            f"{args.start:g} s, {vehicle.describe()}"
+        )
         if args.simulator != "built-in":
             title += f", in {args.simulator}"
-        print(format_campaign(rows, title=title))
+        print(format_campaign(rows, title=title, sources=sources))
         print()
     if written:
         print(f"{len(written)} violation(s) saved under {args.artifacts}/ (record.json, "

@@ -16,6 +16,7 @@ from pytest_metamorphic.driving.campaign import (
     iqbal_campaign,
 )
 from pytest_metamorphic.driving.scenario import euro_ncap
+from pytest_metamorphic.driving.vehicle import TYPICAL_CAR
 
 #: A few speeds around the interesting range, so the default suite stays fast.
 SPEEDS = (15, 20, 40, 60, 70, 80, 90, 100)
@@ -31,25 +32,59 @@ def test_default_sources_are_the_test_road_and_two_real_streets(shared_data: Pat
     for source in sources:
         scenario = source.scenario
         assert (scenario.kind, scenario.ego_speed_kmh) == ("CPNCO-50", 20.0)
+        assert scenario.vehicle == TYPICAL_CAR
         assert scenario.time_to_collision_point == pytest.approx(6.0)
         assert 0 <= scenario.ego_start_s < scenario.conflict_s <= scenario.road.length
         # The fault can only show where the road reaches beyond the mutant's 1.8 m
         # half-corridor on the side the child comes from.
         kerb = scenario.ego_offset + scenario.road.width / 2
         assert kerb > 1.8
+    assert [s.scenario.placement for s in sources] == ["protocol", "road", "road"]
     assert sources[1].name == "8th Street, West Oakland, CA (OSM way 6358365)"
     eighth, seventh = sources[1].scenario, sources[2].scenario
-    # Two 3 m lanes and a painted cycle lane on each side (cycleway=lane).
-    assert (eighth.road.width, eighth.road.lanes, eighth.road.margins) == (9.0, 2, (1.5, 1.5))
+    # Mapped: two 3 m lanes and a painted cycle lane on each side (cycleway=lane);
+    # stated: a 2 m parallel-parking lane at each kerb.
+    assert (eighth.road.width, eighth.road.lanes) == (13.0, 2)
+    assert (eighth.road.margins, eighth.road.parking) == ((3.5, 3.5), (2.0, 2.0))
     assert eighth.ego_offset == pytest.approx(-1.5)  # right-hand traffic lane
-    # One-way arterial, lanes=2 (3.25 m each): the car in the left lane.
-    assert (seventh.road.width, seventh.road.lanes, seventh.ego_lane) == (6.5, 2, 1)
-    assert seventh.ego_offset == pytest.approx(1.625)
+    assert eighth.lateral_start == pytest.approx(5.5)  # 0.5 m beyond the kerb
+    # One-way arterial, lanes=2 (3.25 m each), the car in the left lane; parking stated
+    # on the right, the footway mapped there (sidewalk=right).
+    assert (seventh.road.width, seventh.road.lanes, seventh.ego_lane) == (8.5, 2, 1)
+    assert seventh.road.sidewalks == (2.0, 0.0)
+    assert seventh.ego_offset == pytest.approx(2.625)
+    assert "assumed: parallel parking on the right (not mapped)" in sources[2].note
+    assert "parked cars 4.08 m beside the car's body" in sources[2].note
     missing = Street("osm_osmnx/West-Oakland.osm.bz2", "Nowhere Rd", "")
     with pytest.raises(DataError, match="no drivable way named"):
         default_sources(shared_data, streets=[missing])
     with pytest.raises(InvalidArgument, match="Street"):
         default_sources(shared_data, streets=[("osm_osmnx/x.osm", "A", "")])  # type: ignore[list-item]
+
+
+@pytest.mark.parametrize("kind", ["CPNCO-50", "CPNA-25", "CPFA-50"])
+def test_actors_stand_where_the_road_puts_them(shared_data: Path, kind: str) -> None:
+    """The child starts beyond the kerb on the protocol's side; parked cars stand in the
+    parking lane: never in a traffic lane, never across the kerb."""
+    for source in default_sources(shared_data, kind=kind)[1:]:
+        scenario, road = source.scenario, source.scenario.road
+        start = scenario.pedestrian().d0
+        if scenario.protocol.motion == "near":
+            assert float(start) == pytest.approx(-road.width / 2 - 0.5)
+        else:
+            assert float(start) == pytest.approx(road.width / 2 + 0.5)
+        for parked in scenario.obstructions():
+            low, high = parked.d - parked.footprint.width / 2, parked.d + parked.footprint.width / 2
+            assert -road.width / 2 <= low < high <= -road.width / 2 + road.parking[0]
+            assert road.lane_at(low) is None and road.lane_at(high) is None
+
+
+def test_a_street_without_a_parking_lane_cannot_host_cpnco(shared_data: Path) -> None:
+    bare = Street("osm_osmnx/West-Oakland.osm.bz2", "8th Street", "West Oakland, CA")
+    with pytest.raises(InvalidArgument, match="no parking lane at the right kerb"):
+        default_sources(shared_data, streets=[bare])
+    # Tests without parked cars need none.
+    assert len(default_sources(shared_data, kind="CPNA-25", streets=[bare])) == 2
 
 
 #: Around the source speed (20 km/h), where a faster car arrives early, and a few above.
@@ -58,21 +93,36 @@ PAPER_SPEEDS = (*range(15, 32), 40, 60, 80, 100)
 
 def test_default_campaign_is_the_papers_table(shared_data: Path) -> None:
     """Iqbal's result: the 3.6 m-lane controller lets the pedestrian walk into the car's
-    right side on every source, avoidably; the correct controller never does."""
-    rows = iqbal_campaign(default_sources(shared_data), speeds_kmh=PAPER_SPEEDS)
-    assert len(rows) == 6
+    right side on every source, avoidably; the correct controllers never collide."""
+    sources = default_sources(shared_data)
+    rows = iqbal_campaign(sources, speeds_kmh=PAPER_SPEEDS)
+    assert len(rows) == 9
     for row in rows:
         assert row.keep == "pedestrian" and not row.source_collided
-        if row.controller == "reference":
+        if row.controller != "3.6 m lane mutant":
             assert row.collisions == (), format_campaign([row])
             continue
         assert row.avoidable_violations, format_campaign([row])
-        sides = [c for c in row.violations if c.location == "side"]
-        assert sides and all(c.side == "right" and c.avoidable for c in sides)
+        sides = [c for c in row.avoidable_violations if c.location == "side"]
+        assert sides and all(c.side == "right" for c in sides)
         # The car is early: violations only above the source speed.
         assert row.lowest_violating_speed_kmh > row.source_speed_kmh
-    text = format_campaign(rows)
+        # The paper's own test: with the pedestrian re-timed the mutant avoids them all.
+        assert len(row.retimed_avoidable_violations) == len(row.violations)
+    test_road, eighth, seventh = (r for r in rows if r.controller == "3.6 m lane mutant")
+    # The rows differ by the geometry: on the test road the parked cars stand 1 m from
+    # the car and hide the child until 26 km/h is too fast to stop; on the streets they
+    # stand in a parking lane 2.2 / 4.1 m from it and every violation is avoidable.
+    unavoidable = [c.speed_kmh for c in test_road.violations if not c.avoidable]
+    assert unavoidable == [26.0]
+    assert all(c.avoidable for c in (*eighth.violations, *seventh.violations))
+    # By the lane standard nothing on the streets is avoidable (the child enters the 3 m
+    # lane too late); on the test road the lane is the whole road.
+    assert len(test_road.lane_avoidable_violations) == 3
+    assert eighth.lane_avoidable_violations == seventh.lane_avoidable_violations == ()
+    text = format_campaign(rows, sources=sources)
     assert "right side at" in text and "(avoidable, violation)" in text
+    assert "kerb 5.00 m beyond the car's path, child starts 5.50 m from it" in text
 
 
 def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path) -> None:
@@ -85,23 +135,26 @@ def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path)
     for row in rows:
         assert row.followups == len(SPEEDS) - 1  # the source speed is not a follow-up
         assert not row.source_collided
-        # Whatever else happens, the reference never misses an avoidable collision.
-        if row.controller == "reference":
+        # Whatever else happens, the correct controllers never miss an avoidable collision.
+        if row.controller != "3.6 m lane mutant":
             assert row.avoidable_violations == ()
     # On 8th Street the far-side adult crosses the oncoming lane first: the reference
     # brakes as it steps onto the road, the mutant only 1.8 m from the car's path.
-    assert len(rows[3].avoidable_violations) == 4
+    assert len(rows[4].avoidable_violations) == 4
     ncap_mutant = rows[1]
-    assert [c.speed_kmh for c in ncap_mutant.avoidable_violations] == [60, 70, 80, 90]
-    assert ncap_mutant.lowest_violating_speed_kmh == 60
-    assert ncap_mutant.violation_rate == pytest.approx(5 / 7)
+    assert [c.speed_kmh for c in ncap_mutant.avoidable_violations] == [40, 60, 70, 80]
+    assert ncap_mutant.lowest_violating_speed_kmh == 40
+    assert ncap_mutant.violation_rate == pytest.approx(6 / 7)
     assert ncap_mutant.avoidable_rate == pytest.approx(4 / 7)
-    assert ncap_mutant.front == 5 and ncap_mutant.side == 0
+    assert ncap_mutant.front == 6 and ncap_mutant.side == 0
+    # On 7th Street the car drives in the left lane, 1.6 m from the left kerb: the adult
+    # steps off it almost into the car's path and no controller can stop in time.
+    assert all(not r.avoidable_violations for r in rows[6:])
     text = format_campaign(rows, title="CPFA-50")
     assert text.startswith("CPFA-50\n=======")
-    assert "3.6 m lane mutant  avoided  7     5      0     5           4          60" in text
-    assert "front at 60, 70, 80, 90 (avoidable, violation)" in text
-    assert "42 follow-ups" in text
+    assert "3.6 m lane mutant  avoided  7     6      0     6           4          4" in text
+    assert "front at 40, 60, 70, 80 (avoidable, violation)" in text
+    assert "63 follow-ups" in text
 
 
 def test_campaign_reports_collisions_of_colliding_sources(shared_data: Path) -> None:
@@ -132,7 +185,7 @@ def test_full_iqbal_campaign(shared_data: Path, kind: str, keep: str) -> None:
     rows = iqbal_campaign(sources, keep=keep)  # type: ignore[arg-type]
     assert all(row.followups == 85 for row in rows)
     for row in rows:
-        if row.controller == "reference":
+        if row.controller != "3.6 m lane mutant":
             assert row.avoidable_violations == (), format_campaign([row])
     mutant_on_test_road = rows[1]
     if kind != "CPNCO-50" or keep != "ego_start":
@@ -140,5 +193,7 @@ def test_full_iqbal_campaign(shared_data: Path, kind: str, keep: str) -> None:
     if keep == "pedestrian":
         # Iqbal's follow-up: the fault shows on every source, the reference is clean.
         for row in rows:
-            if row.controller != "reference" and not (kind == "CPFA-50" and "7th" in row.source):
+            if row.controller == "3.6 m lane mutant" and not (
+                kind == "CPFA-50" and "7th" in row.source
+            ):
                 assert row.avoidable_violations, format_campaign([row])

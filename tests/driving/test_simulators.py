@@ -78,7 +78,7 @@ def test_iqbals_campaign_in_highway_env_finds_the_fault_on_every_source(
     rows = iqbal_campaign(default_sources(shared_data), speeds_kmh=(24, 25, 26), simulator=HIGHWAY)
     for row in rows:
         assert not row.source_collided
-        if row.controller == "reference":
+        if row.controller != "3.6 m lane mutant":
             assert row.collisions == (), format_campaign([row])
         else:
             sides = [c for c in row.avoidable_violations if c.location == "side"]
@@ -87,7 +87,7 @@ def test_iqbals_campaign_in_highway_env_finds_the_fault_on_every_source(
 
 @pytest.mark.slow
 def test_the_full_campaign_in_highway_env_gives_the_built_in_table(shared_data: Path) -> None:
-    """All 510 follow-ups: the same violations at the same speeds in both simulators
+    """All 765 follow-ups: the same violations at the same speeds in both simulators
     (a contact at the corner may be classified front in one and side in the other)."""
     sources = default_sources(shared_data)
     ours, theirs = iqbal_campaign(sources), iqbal_campaign(sources, simulator=HIGHWAY)

@@ -44,7 +44,7 @@ def test_mutant_violates_the_relation_with_an_avoidable_collision(kind: str, spe
     assert verdict.details["location"] == "front"
     assert "the source avoided the collision" in verdict.explanation
     assert f"{kind} at {speed} km/h: front collision" in verdict.explanation
-    assert "avoidable: relevant at" in verdict.explanation
+    assert "avoidable: a hazard at" in verdict.explanation
 
 
 def test_unavoidable_follow_up_collisions_are_excused_unless_asked_not_to() -> None:

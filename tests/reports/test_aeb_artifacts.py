@@ -57,7 +57,7 @@ def test_an_aeb_violation_is_saved_with_picture_and_openscenario_and_replays(
         files = aeb["openscenario"][name]
         validate_openscenario(folder / files["xosc"])
         assert (folder / files["xodr"]).is_file()
-    assert "avoidable: relevant at" in record["explanation"]
+    assert "avoidable: a hazard at" in record["explanation"]
 
     still = pytester.runpytest_subprocess("--mt-replay", str(folder), "-p", "no:cacheprovider")
     still.assert_outcomes(failed=1)

@@ -24,16 +24,27 @@ def test_every_violation_is_saved_and_replays(
     assert main([*argv, "--artifacts", str(folder)]) == 0
     out = capsys.readouterr().out
     assert "CPNCO-50, source 20 km/h, car start and pedestrian timing kept" in out
-    assert "30 follow-ups, 9 violation(s), 9 physically avoidable" in out
-    assert f"9 violation(s) saved under {folder}/" in out
+    assert "start 6 s, 9 m/s^2 peak, 0.2 s brake delay, 0.1 s sensor latency" in out
+    # Three sources x three controllers x five speeds; the mutant collides at 23-26 km/h
+    # on each source, all avoidable but 26 km/h on the test road, where the parked cars
+    # stand 1 m from the car and hide the child until too late.
+    assert "45 follow-ups, 12 violation(s), 11 physically avoidable" in out
+    assert f"12 violation(s) saved under {folder}/" in out
+    assert "assumed: parallel parking both sides (not mapped)" in out
     records = sorted(folder.rglob("record.json"))
-    assert len(records) == 9  # 24, 25 and 26 km/h on each of the three sources
+    assert len(records) == 12
     assert {r.parent.parent.name for r in records} == {"3.6_m_lane_mutant"}
-    saved = records[-1].parent
+    saved = next(r.parent for r in records if "8th" in str(r) and r.parent.name == "24-kmh")
     names = {p.name for p in saved.iterdir()}
     assert {"record.json", "birdseye.png", "source.xosc", "followup.xosc"} <= names
     record, source, followup = load_campaign_violation(saved)
     assert record["keep"] == "pedestrian" and record["avoidability"]["avoidable"]
+    judged = record["avoidability"]
+    assert judged["standard"].startswith("carriageway standard, reaction 0.40 s")
+    assert judged["visible_time"] <= judged["relevant_time"] < judged["brake_time"]
+    # The paper's test: with the pedestrian re-timed to meet it the mutant avoids it.
+    assert judged["avoided_with_the_pedestrian_retimed"] is True
+    assert judged["avoidable_by_lane_standard"] is False  # on a street, 3 m lanes
     assert followup.ego_start_s == source.ego_start_s
     assert followup.dummy_arrival_time == pytest.approx(source.time_to_collision_point)
     assert record["runs"]["followup"]["collided"]
