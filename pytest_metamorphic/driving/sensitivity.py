@@ -86,9 +86,7 @@ def sensitivity_settings(
     """
     if not isinstance(vehicle, VehicleSpec):
         raise InvalidArgument(f"vehicle={vehicle!r} must be a VehicleSpec")
-    default = Setting(
-        f"default ({initial_ttc:g} s start, {vehicle.describe()})", initial_ttc, vehicle
-    )
+    default = Setting("default", initial_ttc, vehicle)
     settings = [default]
     for parameter, values in ranges.items():
         if parameter not in _LABELS:

@@ -2,14 +2,27 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
 
 from pytest_metamorphic import InvalidArgument
-from pytest_metamorphic.driving.aeb import AEBController, mutant_fixed_lane, reference_controller
+from pytest_metamorphic.driving.aeb import (
+    AEBController,
+    TTCController,
+    mutant_fixed_lane,
+    reference_controller,
+    ttc_controller,
+)
 from pytest_metamorphic.driving.kinematics import Observation, Track, physically_avoidable, simulate
-from pytest_metamorphic.driving.scenario import KINDS, PROTOCOLS, euro_ncap, euro_ncap_road
+from pytest_metamorphic.driving.scenario import (
+    KINDS,
+    PROTOCOLS,
+    TYPICAL_CAR,
+    euro_ncap,
+    euro_ncap_road,
+)
 
 
 def observe(speed: float, *tracks: Track, lane: tuple[float, float] = (-5.0, 5.0)) -> Observation:
@@ -105,3 +118,40 @@ def test_lane_width_is_validated() -> None:
     with pytest.raises(InvalidArgument, match="fb_deceleration"):
         AEBController(fb_deceleration=0)
     assert euro_ncap_road().lane_width == 10.0
+
+
+def test_the_staging_plans_with_the_cars_own_brakes_and_delays() -> None:
+    """At 10 m/s a pedestrian 10 m ahead (TTC 1.0 s): the ideal car (9.8 m/s^2, no delay)
+    needs 1.10 s to stop, so full braking; a car with 0.3 s of delays and 8 m/s^2 brakes
+    needs 1.63 s: it already brakes fully at TTC 1.5 s, where the ideal car is in PB2."""
+    ahead = walker(15.0, 0.0, vd=0.0)
+    ideal = observe(10.0, ahead)
+    slow = dataclasses.replace(ideal, max_deceleration=8.0, system_delay=0.3)
+    assert reference_controller()(ideal).stage == "PB2"
+    assert reference_controller()(slow).stage == "FB"
+    command = reference_controller()(slow)
+    assert command.deceleration == 9.8  # the request; the car's brakes clip it
+
+
+def test_ttc_controller_brakes_for_a_predicted_crossing_only() -> None:
+    controller = ttc_controller()
+    # A pedestrian 2 m right of the path walking in at 1.4 m/s, 6 m ahead at 10 m/s:
+    # it reaches the path before the car passes, and 0.6 s is within the stopping time.
+    crossing = walker(6.0, -2.0, vd=1.4)
+    assert controller(observe(10.0, crossing)).deceleration == 9.8
+    # Braking holds until the car stands, whatever it sees next.
+    assert controller(observe(5.0)).deceleration == 9.8
+    controller.reset()
+    # Standing beside the path, walking away, or far ahead: no braking.
+    assert controller(observe(10.0, walker(6.0, -2.0, vd=0.0))).deceleration == 0.0
+    assert controller(observe(10.0, walker(6.0, -2.0, vd=-1.4))).deceleration == 0.0
+    assert controller(observe(10.0, walker(60.0, -2.0, vd=1.4))).deceleration == 0.0
+    with pytest.raises(InvalidArgument, match="time_margin"):
+        TTCController(time_margin=-1)
+
+
+@pytest.mark.parametrize("kind", ["CPNA-25", "CPNA-75", "CPNCO-50", "CPFA-50", "CPLA-25"])
+def test_ttc_controller_passes_the_protocol_tests_on_the_typical_car(kind: str) -> None:
+    for speed in PROTOCOLS[kind].speeds_kmh:
+        scenario = euro_ncap(kind, ego_speed_kmh=speed, vehicle=TYPICAL_CAR)
+        assert simulate(scenario, ttc_controller()).avoided, scenario.describe()

@@ -23,6 +23,7 @@ from pytest_metamorphic.driving.kinematics.simulator import _classify
 from pytest_metamorphic.driving.roads import RoadGeometry
 from pytest_metamorphic.driving.scenario import (
     CHILD,
+    EURO_NCAP_CAR,
     KINDS,
     KMH,
     OBSTRUCTION_SMALL,
@@ -292,3 +293,25 @@ def test_a_car_standing_in_the_dummys_path_is_not_a_collision() -> None:
     assert result.end_time < early.dummy_arrival
     # The car stopped across the dummy's path (its front beyond the crossing line).
     assert result.ego_s > motion.s0
+
+
+def test_sensor_latency_shows_the_controller_an_old_world() -> None:
+    """With 0.1 s latency at 10 ms steps the controller sees the first observation for
+    ten steps, then each one ten steps late: the car's speed as it was, too."""
+    seen: list[tuple[float, float]] = []
+
+    def recorder(observation: Observation) -> float:
+        seen.append((observation.time, observation.ego_speed))
+        return 9.8 if observation.time >= 0.5 else 0.0
+
+    car = dataclasses.replace(EURO_NCAP_CAR, sensor_latency=0.1)
+    result = simulate(euro_ncap("CPNA-25", ego_speed_kmh=30, vehicle=car), recorder)
+    times = [t for t, _ in seen]
+    assert times[:11] == [0.0] * 11 and times[11] == pytest.approx(0.01)
+    assert times[70] == pytest.approx(0.6)
+    # It asked for braking on the observation of t = 0.5 s, which it saw at 0.6 s.
+    assert result.first_brake_time == pytest.approx(0.6)
+    assert result.avoided
+    with pytest.raises(InvalidArgument, match="sensor_latency"):
+        dataclasses.replace(EURO_NCAP_CAR, sensor_latency=-0.1)
+    assert car.system_delay == pytest.approx(0.1)

@@ -18,6 +18,8 @@ from pytest_metamorphic.driving.osm import (
     parse_lanes,
     parse_margins,
     parse_oneway,
+    parse_parking,
+    parse_sidewalks,
     parse_width,
     read_osm,
     street_graph,
@@ -378,3 +380,41 @@ def test_an_extract_too_large_to_parse_is_refused_by_name(tmp_path: Path) -> Non
         read_osm(path, max_elements=1000)
     with pytest.raises(InvalidArgument, match="max_elements"):
         read_osm(path, max_elements=0)
+
+
+@pytest.mark.parametrize(
+    ("tags", "reverse", "parking", "sidewalks"),
+    [
+        ({}, False, (0.0, 0.0), (0.0, 0.0)),
+        ({"parking:both": "lane"}, False, (2.0, 2.0), (0.0, 0.0)),
+        ({"parking:lane:right": "diagonal", "cycleway": "lane"}, False, (4.5, 0.0), (0.0, 0.0)),
+        ({"parking:right": "lane"}, True, (0.0, 2.0), (0.0, 0.0)),  # oneway=-1 swaps sides
+        ({"sidewalk": "both"}, False, (0.0, 0.0), (2.0, 2.0)),
+        ({"sidewalk": "right"}, False, (0.0, 0.0), (2.0, 0.0)),
+        ({"sidewalk": "separate"}, False, (0.0, 0.0), (0.0, 0.0)),  # its own way
+        ({"sidewalk:left": "yes", "sidewalk:left:width": "3.5"}, False, (0.0, 0.0), (0.0, 3.5)),
+        ({"sidewalk:both": "yes", "sidewalk:right": "no"}, False, (0.0, 0.0), (0.0, 2.0)),
+    ],
+)  # fmt: skip
+def test_parking_lanes_and_sidewalks_per_side(
+    tags: dict[str, str],
+    reverse: bool,
+    parking: tuple[float, float],
+    sidewalks: tuple[float, float],
+) -> None:
+    assert parse_parking(tags, reverse=reverse) == parking
+    assert parse_sidewalks(tags, reverse=reverse) == sidewalks
+
+
+def test_assumed_tags_are_stated_not_edited_into_the_map(shared_data: Path) -> None:
+    roads = {r.way_id: r for r in load_roads(shared_data / OAKLAND, highway=DRIVABLE_HIGHWAYS)}
+    seventh = roads[202455451]  # one-way, lanes=2, sidewalk=right
+    assert (seventh.width, seventh.parking, seventh.sidewalks) == (6.5, (0.0, 0.0), (2.0, 0.0))
+    parked = seventh.with_tags({"parking:right": "lane"})
+    assert (parked.width, parked.lanes, parked.margins, parked.parking) == (
+        8.5, 2, (2.0, 0.0), (2.0, 0.0),
+    )  # fmt: skip
+    assert parked.tags["parking:right"] == "lane" and "parking:right" not in seventh.tags
+    assert parked.centerline is seventh.centerline and parked.oneway
+    with pytest.raises(InvalidArgument, match="extra"):
+        seventh.with_tags({"parking:right": 2})  # type: ignore[dict-item]

@@ -61,3 +61,20 @@ def test_a_broken_record_is_a_data_error() -> None:
         scenario_from_json(data)
     with pytest.raises(DataError, match="not a recorded AEB scenario"):
         scenario_from_json([])  # type: ignore[arg-type]
+
+
+def test_placement_cross_section_and_delays_are_recorded() -> None:
+    from pytest_metamorphic.driving.roads import RoadGeometry
+    from pytest_metamorphic.driving.scenario import TYPICAL_CAR
+
+    road = RoadGeometry.straight(
+        width=10.0, lanes=2, margins=(2.0, 0.0), parking=(2.0, 0.0), sidewalks=(1.5, 0.0)
+    )
+    scenario = euro_ncap("CPNCO-50", road=road, vehicle=TYPICAL_CAR, placement="road")
+    data = scenario_to_json(scenario)
+    assert data["placement"] == "road" and data["vehicle"]["sensor_latency"] == 0.1
+    again = scenario_from_json(data)
+    assert again == scenario and again.obstructions() == scenario.obstructions()
+    data["vehicle"]["sensor_latency"] = 1e9
+    with pytest.raises(DataError, match=r"vehicle\.sensor_latency"):
+        scenario_from_json(data)

@@ -123,3 +123,20 @@ def test_margins_sit_between_the_kerbs_and_the_lanes() -> None:
 def test_bad_geometry_is_refused(kwargs: dict, message: str) -> None:
     with pytest.raises(InvalidArgument, match=message):
         RoadGeometry(**kwargs)
+
+
+def test_parking_lanes_lie_at_the_kerbs_inside_the_margins() -> None:
+    road = RoadGeometry.straight(
+        width=10.0, lanes=2, margins=(3.5, 0.0), parking=(2.0, 0.0), sidewalks=(2.0, 0.0)
+    )
+    assert road.kerb("right") == -5.0 and road.kerb("left") == 5.0
+    assert road.parking_lane("right") == (-5.0, -3.0) and road.parking_lane("left") is None
+    assert road.lane_at(-3.5) is None  # the cycle lane between parking and traffic
+    assert "parking 2 / 0 m" in road.describe() and "sidewalks 2 / 0 m" in road.describe()
+    assert not road.equals(RoadGeometry.straight(width=10.0, lanes=2, margins=(3.5, 0.0)))
+    with pytest.raises(InvalidArgument, match="part of the margin"):
+        RoadGeometry.straight(width=10.0, margins=(1.0, 0.0), parking=(2.0, 0.0))
+    with pytest.raises(InvalidArgument, match="sidewalks"):
+        RoadGeometry.straight(width=10.0, sidewalks=(-1.0, 0.0))
+    with pytest.raises(InvalidArgument, match="side"):
+        road.kerb("middle")
