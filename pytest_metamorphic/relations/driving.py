@@ -127,15 +127,15 @@ class AvoidedStaysAvoided(Relation):
         if self.excuse_unavoidable and self.judge == "scenario":
             avoidability = judge_avoidable(
                 followup.scenario,
-                relevance=self.relevance,
-                decision_time=self.slack,  # type: ignore[arg-type]
+                relevance=self.relevance,  # type: ignore[arg-type]
+                decision_time=self.slack,
             )
         elif self.excuse_unavoidable:
             avoidability = physically_avoidable(
                 followup.scenario,
                 slack=self.slack,
-                relevance=self.relevance,
-                sensor=self.sensor,  # type: ignore[arg-type]
+                relevance=self.relevance,  # type: ignore[arg-type]
+                sensor=self.sensor,
             )
         if avoidability is not None:
             details["physically_avoidable"] = avoidability.avoidable
