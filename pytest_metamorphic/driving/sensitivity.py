@@ -170,7 +170,8 @@ def _short(source: str) -> str:
 def format_sensitivity(results: Sequence[SensitivityResult]) -> str:
     """Per setting and controller a line with one cell per source (``violations/avoidable
     @ lowest violating km/h``, ``-`` for none), then per controller the range over all
-    settings."""
+    settings: "clean" means no avoidable violation; settings with collisions that no
+    braking could have avoided are named."""
     if not results:
         return "no settings"
     sources = list(dict.fromkeys(_short(row.source) for row in results[0].rows))
@@ -207,5 +208,13 @@ def format_sensitivity(results: Sequence[SensitivityResult]) -> str:
         )
         if dirty and clean:
             summary += f"; avoidable violations with {', '.join(dirty)}"
+        unavoidable = [
+            result.setting.name
+            for result in results
+            if any(r.violations for r in result.rows if r.controller == controller)
+            and result.setting.name not in dirty
+        ]
+        if unavoidable:
+            summary += f"; unavoidable violations only, with {', '.join(unavoidable)}"
         lines.append(summary)
     return "\n".join(lines)
