@@ -20,8 +20,9 @@ folder per violating follow-up under ``mt-artifacts/aeb-campaign/`` (``--artifac
 ``--start``, ``--deceleration``, ``--brake-delay``, ``--latency`` set the car's start and
 the car (default: 6 s and the typical car); ``--sensitivity`` runs the campaign over
 their ranges instead (:mod:`~pytest_metamorphic.driving.sensitivity`) and prints where
-each controller stays clean. ``--replay FOLDER`` re-runs a saved violation with the same
-controller and simulator.
+each controller stays clean. ``--crosscheck`` adds CommonRoad's opinion on every run
+(:mod:`~pytest_metamorphic.driving.commonroad`). ``--replay FOLDER`` re-runs a saved
+violation with the same controller and simulator.
 Folders are written atomically (complete or absent), each as soon as its violation is
 found, so an interrupted campaign keeps what it found.
 """
@@ -269,6 +270,12 @@ def _parser() -> argparse.ArgumentParser:
         "--latency", type=float, default=TYPICAL_CAR.sensor_latency, help="sensor latency, seconds"
     )
     parser.add_argument(
+        "--crosscheck",
+        action="store_true",
+        help="also check every run with CommonRoad's collision checker and vehicle model "
+        "(the commonroad extra, in an environment without onnxruntime)",
+    )
+    parser.add_argument(
         "--sensitivity",
         action="store_true",
         help="run the campaign over the ranges of start, brake delay, deceleration and "
@@ -360,6 +367,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.simulator != "built-in":
             title += f", in {args.simulator}"
         print(format_campaign(rows, title=title, sources=sources))
+        if args.crosscheck:
+            from pytest_metamorphic.driving.commonroad import crosscheck_campaign, format_crosscheck
+
+            report = crosscheck_campaign(
+                sources, CONTROLLERS, speeds_kmh=speeds, keep=keep, simulator=simulator
+            )
+            print(f"\n{format_crosscheck(report, title='CommonRoad cross-check:')}")
         print()
     if written:
         print(f"{len(written)} violation(s) saved under {args.artifacts}/ (record.json, "
