@@ -10,11 +10,20 @@ did not write (TUM's CommonRoad, from PyPI):
 * :func:`braking_avoids`: the car under full braking from a given moment, its speed
   integrated with ``commonroad-vehicle-models``' kinematic single-track model (its
   acceleration constraints included), checked with the same collision test;
-* :func:`crosscheck_campaign`: both over a whole campaign, with every disagreement listed.
+* :func:`commonroad_scenario`: a scenario and a run as a ``commonroad-io`` scenario (the
+  car's lane as a lanelet, the car, the pedestrian, the parked cars), written with
+  :func:`write_commonroad` for CommonRoad's own tools;
+* :func:`crime_stops_short`: CommonRoad-CriMe's headway (``HW``) and time to collision
+  (``TTC``) along the car's lanelet at the moment CommonRoad assigns the pedestrian to
+  it, and whether the car, reacting then, stops within that headway: a lane-standard
+  avoidability computed with their lanelets and measures;
+* :func:`crosscheck_campaign`: all of these over a whole campaign, with every
+  disagreement listed.
 
 Extra ``commonroad`` (``commonroad-io``, ``commonroad-drivability-checker``,
-``commonroad-vehicle-models``). It needs an environment of its own: ``commonroad-io``
-pins ``protobuf`` 3.20, which ``onnxruntime`` (the ``learned`` extra) refuses.
+``commonroad-vehicle-models``, ``commonroad-crime``). It needs an environment of its own:
+``commonroad-io`` pins ``protobuf`` 3.20, which ``onnxruntime`` (the ``learned`` extra)
+refuses.
 
 Along curved roads the car is placed on its lane's centre line by the distance the model
 travelled (its steering is not simulated); on straight roads the model's own straight-line
@@ -24,8 +33,9 @@ motion is the same thing.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -164,6 +174,171 @@ def braking_avoids(
     return True
 
 
+_EGO_ID, _PEDESTRIAN_ID, _LANE_ID = 100, 200, 1
+
+
+def commonroad_scenario(
+    scenario: Scenario, fronts: Sequence[float], speeds: Sequence[float], *, dt: float = 0.01
+) -> Any:
+    """``scenario`` as a ``commonroad-io`` scenario, the car's bumper at ``fronts[k]`` with
+    speed ``speeds[k]`` at time step ``k`` (``dt`` seconds each).
+
+    The car's lane becomes one lanelet (its boundaries every metre along the road), the
+    car obstacle 100, the pedestrian 200, parked cars 300 and up; obstacles are assigned
+    to lanelets by their centres (``assign_obstacles_to_lanelets``).
+
+    The world is turned so that the road heads along +x at the collision point: CriMe's
+    headway (``HW``) moves the car's centre to its front by adding half its length to
+    *both* coordinates (and the other's centre to its rear likewise), which is right only
+    for a lane heading along +x; unturned, 8th Street (heading 164 degrees) read 4.1 m
+    too much headway.
+    """
+    _pycrcc()
+    from commonroad.geometry.shape import Rectangle
+    from commonroad.prediction.prediction import TrajectoryPrediction
+    from commonroad.scenario.lanelet import Lanelet, LaneletNetwork
+    from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType, StaticObstacle
+    from commonroad.scenario.scenario import Scenario as CommonRoadScenario
+    from commonroad.scenario.scenario import ScenarioID
+    from commonroad.scenario.state import CustomState, InitialState
+    from commonroad.scenario.trajectory import Trajectory
+
+    road, vehicle = scenario.road, scenario.vehicle
+    turn_x, turn_y, turn_h = road.point(scenario.conflict_s)
+    cos, sin = math.cos(-turn_h), math.sin(-turn_h)
+
+    def turned(x: Any, y: Any) -> tuple[Any, Any]:
+        dx, dy = np.asarray(x) - turn_x, np.asarray(y) - turn_y
+        return cos * dx - sin * dy, sin * dx + cos * dy
+
+    def pose(s_: float, d_: float, heading: float | None = None) -> tuple[float, float, float]:
+        x, y, h = road.point(s_, d_)
+        tx, ty = turned(x, y)
+        return float(tx), float(ty), (h if heading is None else heading) - turn_h
+
+    along = np.append(np.arange(0.0, road.length, 1.0), road.length)
+    low, high = road.lane_bounds(scenario.ego_lane)
+    bound = []
+    for d in (high, (low + high) / 2, low):
+        world = road.to_world(along, np.full_like(along, d))
+        bound.append(np.stack(turned(world[:, 0], world[:, 1]), axis=1))
+    lanelet = Lanelet(bound[0], bound[1], bound[2], _LANE_ID)
+    result = CommonRoadScenario(dt, ScenarioID(map_name="pytest-metamorphic-aeb"))
+    result.add_objects(LaneletNetwork.create_from_lanelet_list([lanelet]))
+
+    def obstacle(
+        oid: int, kind: Any, poses: list, velocities: list, length: float, width: float
+    ) -> Any:
+        states = [
+            CustomState(position=np.array([x, y]), orientation=h, velocity=v, velocity_y=0.0,
+                        acceleration=0.0, acceleration_y=0.0, time_step=k)
+            for k, ((x, y, h), v) in enumerate(zip(poses, velocities, strict=True))
+        ]  # fmt: skip
+        first = states[0]
+        initial = InitialState(position=first.position, orientation=first.orientation,
+                               velocity=first.velocity, acceleration=0.0, yaw_rate=0.0,
+                               slip_angle=0.0, time_step=0)  # fmt: skip
+        initial.velocity_y = initial.acceleration_y = 0.0
+        shape = Rectangle(length, width)
+        trajectory = TrajectoryPrediction(Trajectory(1, states[1:]), shape)
+        return DynamicObstacle(oid, kind, shape, initial, trajectory)
+
+    car = [
+        pose(f - vehicle.length / 2, scenario.ego_offset,
+             road.chord_heading(f - vehicle.length / 2, vehicle.wheelbase))
+        for f in fronts
+    ]  # fmt: skip
+
+    motion = scenario.pedestrian()
+    times = np.arange(len(fronts), dtype=np.float64) * dt
+    walked_s, walked_d = motion.road_position(times)
+    turn = math.copysign(math.pi / 2, motion.dd) if abs(motion.dd) > 0.5 else 0.0
+    walker = [
+        (x, y, h + turn)
+        for x, y, h in (
+            pose(a, b) for a, b in zip(walked_s.tolist(), walked_d.tolist(), strict=True)
+        )
+    ]
+    footprint = motion.footprint
+    result.add_objects([
+        obstacle(_EGO_ID, ObstacleType.CAR, car, list(speeds), vehicle.length, vehicle.width),
+        obstacle(_PEDESTRIAN_ID, ObstacleType.PEDESTRIAN, walker,
+                 motion.velocity(times).tolist(), footprint.length, footprint.width),
+    ])  # fmt: skip
+    for index, parked in enumerate(scenario.obstructions()):
+        x, y, h = pose(parked.s, parked.d)
+        initial = InitialState(
+            position=np.array([x, y]), orientation=h, velocity=0.0, acceleration=0.0,
+            yaw_rate=0.0, slip_angle=0.0, time_step=0,
+        )  # fmt: skip
+        shape = Rectangle(parked.footprint.length, parked.footprint.width)
+        result.add_objects(StaticObstacle(300 + index, ObstacleType.PARKED_VEHICLE, shape, initial))
+    result.assign_obstacles_to_lanelets(use_center_only=True)
+    return result
+
+
+def write_commonroad(result: SimulationResult, path: str | Path) -> Path:
+    """A run as a CommonRoad XML scenario file (``commonroad-io``'s writer)."""
+    from commonroad.common.file_writer import CommonRoadFileWriter, OverwriteExistingFile
+    from commonroad.planning.planning_problem import PlanningProblemSet
+
+    scenario = commonroad_scenario(
+        result.scenario, result.positions.tolist(), result.speeds.tolist()
+    )
+    target = Path(path)
+    writer = CommonRoadFileWriter(
+        scenario, PlanningProblemSet(), author="pytest-metamorphic", affiliation="",
+        source="pytest-metamorphic AEB campaign", tags=set(),
+    )  # fmt: skip
+    writer.write_to_file(str(target), OverwriteExistingFile.ALWAYS)
+    return target
+
+
+@dataclass(frozen=True)
+class CrimeVerdict:
+    """CommonRoad-CriMe's view of a scenario's pedestrian, from the unbraked car.
+
+    ``time``: when CommonRoad first assigns the (visible) pedestrian to the car's lanelet
+    (None: never before the car reaches it); ``headway`` (m) and ``ttc`` (s): CriMe's
+    ``HW`` and ``TTC`` then; ``stops_short``: the car, reacting after ``reaction`` seconds
+    and braking at its peak deceleration, stops within the headway.
+    """
+
+    time: float | None
+    headway: float
+    ttc: float
+    stops_short: bool
+
+
+def crime_stops_short(
+    scenario: Scenario, *, reaction: float, visible_from: float = 0.0, dt: float = 0.01
+) -> CrimeVerdict:
+    """CriMe's headway and TTC when the pedestrian enters the car's lanelet (see
+    :class:`CrimeVerdict`); the unbraked car drives at its initial speed throughout."""
+    from commonroad_crime.data_structure.configuration import CriMeConfiguration
+    from commonroad_crime.measure import HW, TTC
+
+    steps = math.ceil(scenario.time_to_collision_point / dt) + 1
+    fronts = [scenario.ego_start_s + scenario.ego_speed * k * dt for k in range(steps)]
+    crs = commonroad_scenario(scenario, fronts, [scenario.ego_speed] * steps, dt=dt)
+    pedestrian = crs.obstacle_by_id(_PEDESTRIAN_ID)
+    assignment = pedestrian.prediction.center_lanelet_assignment or {}
+    first = next(
+        (k for k in range(math.ceil(visible_from / dt), steps)
+         if _LANE_ID in assignment.get(k, set())),
+        None,
+    )  # fmt: skip
+    if first is None:
+        return CrimeVerdict(None, math.inf, math.inf, False)
+    config = CriMeConfiguration()
+    config.update(ego_id=_EGO_ID, sce=crs)
+    headway = float(HW(config).compute(_PEDESTRIAN_ID, first, verbose=False))
+    ttc = float(TTC(config).compute(_PEDESTRIAN_ID, first, verbose=False))
+    speed = scenario.ego_speed
+    needed = speed * reaction + speed**2 / (2 * scenario.vehicle.max_deceleration)
+    return CrimeVerdict(first * dt, headway, ttc, needed <= headway)
+
+
 @dataclass
 class CrosscheckReport:
     """What CommonRoad said about a campaign's runs and collisions."""
@@ -173,6 +348,8 @@ class CrosscheckReport:
     contact_disagreements: list[str] = field(default_factory=list)
     judged: int = 0
     judge_disagreements: list[str] = field(default_factory=list)
+    lane_judged: int = 0
+    crime_disagreements: list[str] = field(default_factory=list)
 
 
 def crosscheck_campaign(
@@ -224,6 +401,21 @@ def _check_run(report: CrosscheckReport, label: str, result: SimulationResult) -
             f"{label}: judge {verdict.describe()}; CommonRoad braking from "
             f"{verdict.brake_time:.2f} s {'avoids' if avoids else 'still touches'}"
         )
+    # The lane standard against CriMe: both ask whether the car, reacting when the
+    # pedestrian enters its lane, stops short of it.
+    lane = judge_avoidable(result.scenario, relevance="lane")
+    reaction = 0.1 + result.scenario.vehicle.system_delay
+    crime = crime_stops_short(
+        result.scenario, reaction=reaction, visible_from=lane.visible_time or 0.0
+    )
+    report.lane_judged += 1
+    judge_short = lane.avoidable and lane.gap >= 0
+    if crime.stops_short != judge_short:
+        report.crime_disagreements.append(
+            f"{label}: judge (lane) {lane.describe()}; CriMe at t={crime.time} s: headway "
+            f"{crime.headway:.2f} m, TTC {crime.ttc:.2f} s, "
+            f"{'stops short' if crime.stops_short else 'cannot stop short'}"
+        )
 
 
 def format_crosscheck(report: CrosscheckReport, *, title: str = "") -> str:
@@ -239,4 +431,10 @@ def format_crosscheck(report: CrosscheckReport, *, title: str = "") -> str:
         f"{len(report.judge_disagreements)}"
     )
     lines += [f"  {line}" for line in report.judge_disagreements]
+    lines.append(
+        f"{report.lane_judged} collisions by the lane standard: CommonRoad-CriMe's headway "
+        f"when the pedestrian enters the car's lanelet disagrees with the judge on "
+        f"{len(report.crime_disagreements)}"
+    )
+    lines += [f"  {line}" for line in report.crime_disagreements]
     return "\n".join(lines)

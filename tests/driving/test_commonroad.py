@@ -18,9 +18,11 @@ from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controll
 from pytest_metamorphic.driving.campaign import default_sources
 from pytest_metamorphic.driving.commonroad import (
     braking_avoids,
+    crime_stops_short,
     crosscheck_campaign,
     first_contact,
     format_crosscheck,
+    write_commonroad,
 )
 from pytest_metamorphic.driving.judge import judge_avoidable
 from pytest_metamorphic.driving.kinematics import simulate
@@ -74,8 +76,47 @@ def test_the_default_campaign_has_no_disagreement(shared_data: Path) -> None:
     assert report.runs == 3 * 3 * len(speeds)
     assert report.contacts == 12 and report.judged == 12
     assert report.contact_disagreements == [] and report.judge_disagreements == []
+    assert report.lane_judged == 12 and report.crime_disagreements == []
     text = format_crosscheck(report, title="CPNCO-50")
     assert "12 contacts; 0 disagree" in text and "disagrees with the judge on 0" in text
+    assert "CriMe's headway" in text
+
+
+@needs_commonroad
+def test_crimes_headway_agrees_with_the_lane_standard_on_a_turned_street(
+    shared_data: Path,
+) -> None:
+    """8th Street heads 164 degrees: CriMe's headway is only right in a frame where the
+    lane heads along +x, which commonroad_scenario turns the world into."""
+    street = default_sources(shared_data)[1].scenario
+    for speed, stops in ((23, False), (24, False)):
+        scenario = street.with_ego_speed(speed, keep="pedestrian")
+        lane = judge_avoidable(scenario, relevance="lane")
+        crime = crime_stops_short(scenario, reaction=0.4, visible_from=lane.visible_time or 0.0)
+        assert crime.time == pytest.approx(lane.relevant_time, abs=0.011)
+        # The true headway then: bumper to the child's near face along the road.
+        motion = scenario.pedestrian()
+        front = scenario.ego_start_s + scenario.ego_speed * crime.time
+        true = float(motion.road_position(crime.time)[0]) - motion.extent_along_road / 2 - front
+        assert crime.headway == pytest.approx(true, abs=0.25)
+        assert crime.stops_short is stops
+    test_road = euro_ncap("CPNCO-50", ego_speed_kmh=20, vehicle=TYPICAL_CAR)
+    verdict = crime_stops_short(test_road.with_ego_speed(23, keep="pedestrian"), reaction=0.4)
+    assert verdict.stops_short and verdict.ttc > 0
+
+
+@needs_commonroad
+def test_a_run_is_written_as_a_commonroad_scenario(tmp_path: Path) -> None:
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    run = simulate(euro_ncap("CPNCO-50", ego_speed_kmh=30), reference_controller())
+    path = write_commonroad(run, tmp_path / "run.xml")
+    scenario, _ = CommonRoadFileReader(str(path)).open()
+    kinds = sorted(o.obstacle_type.value for o in scenario.obstacles)
+    assert kinds == ["car", "parkedVehicle", "parkedVehicle", "pedestrian"]
+    car = scenario.obstacle_by_id(100)
+    assert len(car.prediction.trajectory.state_list) == len(run.times) - 1
+    assert len(scenario.lanelet_network.lanelets) == 1
 
 
 @needs_commonroad
