@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,6 +58,15 @@ RELEVANCE_STANDARDS: tuple[str, ...] = ("carriageway", "lane", "path")
 JUDGE_RANGE = 100.0
 _STEP = 0.001
 _EXTRA_TIME = 5.0
+
+
+class _Walk(NamedTuple):
+    """The dummy sampled over time: road coordinates and half its extents."""
+
+    s: NDArray
+    d: NDArray
+    half_along: float
+    half_across: float
 
 
 @dataclass(frozen=True)
@@ -173,7 +182,8 @@ def judge_avoidable(
     times = np.arange(0.0, t_end + _STEP, _STEP)
     motion = scenario.pedestrian()
     ped_s, ped_d = motion.road_position(times)
-    half_along, half_across = motion.extent_along_road / 2, motion.extent_across_road / 2
+    walk = _Walk(ped_s, ped_d, motion.extent_along_road / 2, motion.extent_across_road / 2)
+    half_along, half_across = walk.half_along, walk.half_across
     path = scenario.ego_offset
     if relevance == "carriageway":
         road = scenario.road
@@ -187,12 +197,12 @@ def judge_avoidable(
         half = vehicle.width / 2
         in_way = _overlap(ped_d - half_across, ped_d + half_across, path - half, path + half)
     cruise_front = start + speed * times
-    visible = _visible(scenario, times, cruise_front, ped_s, ped_d, half_along, half_across)
+    visible = _visible(scenario, cruise_front, walk)
     hazard = np.flatnonzero(in_way & visible)
     first_visible = np.flatnonzero(visible)
     visible_time = float(times[first_visible[0]]) if len(first_visible) else None
     # The unbraked car's first contact bounds when a hazard still counts.
-    contact = _contacts(scenario, cruise_front, ped_s, ped_d, half_along, half_across)
+    contact = _contacts(scenario, cruise_front, walk)
     first_contact = int(np.argmax(contact)) if contact.any() else len(times)
     if not len(hazard) or hazard[0] >= first_contact:
         return Judgement(False, None, visible_time, None, -speed, standard)
@@ -211,14 +221,14 @@ def judge_avoidable(
         times < brake, speed, np.maximum(speed - vehicle.max_deceleration * braking, 0.0)
     )
     moving = velocity > 1e-9
-    hits = _contacts(scenario, front, ped_s, ped_d, half_along, half_across) & moving
+    hits = _contacts(scenario, front, walk) & moving
     if hits.any():
         return Judgement(
             False, relevant, visible_time, brake, -float(velocity[np.argmax(hits)]), standard
         )
     stopped = int(np.argmax(~moving)) if (~moving).any() else len(times) - 1
     gap = float(ped_s[stopped] - half_along - front[stopped])
-    if gap < 0 and not _crossed_first(scenario, front, ped_s, ped_d, half_along, half_across):
+    if gap < 0 and not _crossed_first(scenario, front, walk):
         # The braking car still reached the crossing before the pedestrian: it missed only
         # because it passed first, which braking cannot be credited with.
         return Judgement(False, relevant, visible_time, brake, 0.0, standard + ", passes first")
@@ -228,12 +238,10 @@ def judge_avoidable(
 def _crossed_first(
     scenario: Scenario,
     front: NDArray,
-    ped_s: NDArray,
-    ped_d: NDArray,
-    half_along: float,
-    half_across: float,
+    walk: _Walk,
 ) -> bool:
     """Whether the pedestrian was clear beyond the car's path when the car reached its line."""
+    ped_s, ped_d, half_along, half_across = walk
     reached = np.flatnonzero(front >= ped_s - half_along)
     direction = scenario.pedestrian().dd
     if not len(reached) or abs(direction) < 0.5:
@@ -247,12 +255,10 @@ def _crossed_first(
 def _contacts(
     scenario: Scenario,
     front: NDArray,
-    ped_s: NDArray,
-    ped_d: NDArray,
-    half_along: float,
-    half_across: float,
+    walk: _Walk,
 ) -> NDArray[np.bool_]:
     """Whether the car with its bumper at ``front`` overlaps the dummy, per sample."""
+    ped_s, ped_d, half_along, half_across = walk
     vehicle, path = scenario.vehicle, scenario.ego_offset
     along = _overlap(front - vehicle.length, front, ped_s - half_along, ped_s + half_along)
     across = _overlap(
@@ -263,21 +269,18 @@ def _contacts(
 
 def _visible(
     scenario: Scenario,
-    times: NDArray,
     front: NDArray,
-    ped_s: NDArray,
-    ped_d: NDArray,
-    half_along: float,
-    half_across: float,
+    walk: _Walk,
 ) -> NDArray[np.bool_]:
     """Line of sight from the bumper's middle to the dummy's centre or a corner, per sample."""
+    ped_s, ped_d, half_along, half_across = walk
     boxes = [
         (p.s - p.footprint.length / 2, p.s + p.footprint.length / 2,
          p.d - p.footprint.width / 2, p.d + p.footprint.width / 2)
         for p in scenario.obstructions()
     ]  # fmt: skip
     path = scenario.ego_offset
-    seen = np.zeros(len(times), dtype=bool)
+    seen = np.zeros(len(front), dtype=bool)
     for ds, dd in ((0, 0), (-1, -1), (-1, 1), (1, -1), (1, 1)):
         ts, td = ped_s + ds * half_along, ped_d + dd * half_across
         ahead = (ts > front) & (np.hypot(ts - front, td - path) <= JUDGE_RANGE)

@@ -33,14 +33,7 @@ __all__ = ["RoadGeometry"]
 
 
 def _margins(value: Any, width: float) -> tuple[float, float]:
-    try:
-        right, left = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise InvalidArgument(
-            f"margins={value!r} must be a (right, left) pair of widths in metres"
-        ) from None
-    if not (math.isfinite(right) and math.isfinite(left) and right >= 0 and left >= 0):
-        raise InvalidArgument(f"margins={value!r} must be finite widths >= 0")
+    right, left = _strips(value, "margins", None)
     if right + left >= width:
         raise InvalidArgument(
             f"margins={value!r} leave no room for lanes on a {width:g} m carriageway"
