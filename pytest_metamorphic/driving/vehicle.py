@@ -65,6 +65,6 @@ EURO_NCAP_CAR = VehicleSpec()
 #: (about 0.9 g, dry asphalt with ABS), 0.2 s from a brake command to that deceleration
 #: (brake pre-fill and pressure build-up; pedestrian AEB brakes in a short ramp before its
 #: steady phase, SAE 2020-01-0878) and 0.1 s sensor latency (one 10 Hz LiDAR/radar frame).
-#: Assumptions, stated: :func:`~pytest_metamorphic.driving.campaign.sensitivity_campaign`
+#: Assumptions, stated: :func:`~pytest_metamorphic.driving.sensitivity.sensitivity_campaign`
 #: shows what changes over 8-9.8 m/s^2, 0-0.3 s and 0-0.2 s.
 TYPICAL_CAR = VehicleSpec(max_deceleration=9.0, brake_delay=0.2, sensor_latency=0.1)
