@@ -1,10 +1,12 @@
 """Iqbal's Table II campaign, as ``python -m pytest_metamorphic.reports.aeb_campaign`` runs it.
 
 The default campaign: three CPNCO-50 sources at 20 km/h (the Euro NCAP 10 m test road,
-8th Street and 7th Street in West Oakland from ``../shared/data/osm_osmnx``), the
-reference AEB and the 3.6 m-lane mutant, one follow-up per speed from 15 to 100 km/h
-with the pedestrian's own timing kept: 6 x 85 = 510 follow-ups plus 6 source runs, each
-collision judged physically avoidable or not. Target: under 30 s on one core.
+8th Street and 7th Street in West Oakland from ``../shared/data/osm_osmnx``, placed by
+their cross-section), the typical car, the reference AEB, the 3.6 m-lane mutant and the
+TTC AEB, one follow-up per speed from 15 to 100 km/h with the pedestrian's own timing
+kept: 9 x 85 = 765 follow-ups plus 9 source runs, each collision judged by the
+independent judge (two standards) and each violation re-run with the pedestrian
+re-timed (the paper's test). Target: under 30 s on one core.
 
 Baseline, measured in the same run: the same campaign in highway-env (Farama, PyPI), a
 general-purpose driving simulator, through ``HighwayEnvSimulator``; both must produce the
