@@ -180,13 +180,23 @@ def test_campaign_arguments_are_checked(shared_data: Path) -> None:
 @pytest.mark.parametrize("kind", ["CPNCO-50", "CPNA-25", "CPFA-50"])
 @pytest.mark.parametrize("keep", ["pedestrian", "ego_start", "time"])
 def test_full_iqbal_campaign(shared_data: Path, kind: str, keep: str) -> None:
-    """85 follow-ups per source: the reference never has an avoidable violation."""
+    """85 follow-ups per source: the reference never has an avoidable violation; the TTC
+    AEB only its documented one."""
     sources = default_sources(shared_data, kind=kind)
     rows = iqbal_campaign(sources, keep=keep)  # type: ignore[arg-type]
     assert all(row.followups == 85 for row in rows)
     for row in rows:
-        if row.controller != "3.6 m lane mutant":
+        if row.controller == "reference":
             assert row.avoidable_violations == (), format_campaign([row])
+        if row.controller == "TTC AEB" and (kind, keep) != ("CPNCO-50", "time"):
+            assert row.avoidable_violations == (), format_campaign([row])
+        if row.controller == "TTC AEB" and (kind, keep) == ("CPNCO-50", "time"):
+            # Its weakness (docs/aeb.md): it extrapolates a pedestrian at its current
+            # speed, and a child still accelerating from standstill looks too slow to
+            # reach the car's path in time; at 94-100 km/h on the test road it brakes 2 s
+            # after the child starts walking, too late.
+            late = [(c.speed_kmh, c.location) for c in row.avoidable_violations]
+            assert all(speed >= 94 and where == "front" for speed, where in late), late
     mutant_on_test_road = rows[1]
     if kind != "CPNCO-50" or keep != "ego_start":
         assert mutant_on_test_road.avoidable_violations, format_campaign(rows)
