@@ -239,6 +239,22 @@ class LineChannel:
         self._last = answer
         return answer
 
+    @property
+    def last_answer(self) -> str | None:
+        """The line taken as the answer to the latest request."""
+        return self._last
+
+    def output_within(self, seconds: float) -> str:
+        """Whatever the program prints on stdout within ``seconds`` (empty if nothing);
+        the program keeps running. Used to tell a stray line taken for an answer (a
+        banner) from a real answer, when the files it announced turn out incomplete."""
+        deadline = time.monotonic() + seconds
+        while True:
+            pending = self._pending()
+            if pending or time.monotonic() >= deadline:
+                return pending
+            time.sleep(0.02)
+
     def stderr_tail(self) -> str:
         """The end of what the program wrote on stderr, indented, for error messages."""
         return _tail(self._stderr)

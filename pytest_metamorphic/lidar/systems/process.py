@@ -370,7 +370,26 @@ class ProcessDetector:
                 )
             return read_kitti_labels(path, self._calibration())
         except DataError as error:
+            self._stray_answer()
             raise ExternalSystemError(f"{self._name()} wrote garbage: {error}") from None
+
+    def _stray_answer(self) -> None:
+        """A long-lived program whose predictions are incomplete may have had a stray line
+        (a banner) taken for its answer while it was still writing: if its real answer
+        follows within a second, name the stray line instead of blaming the file."""
+        channel = self._channel
+        if not self.persistent or channel is None:
+            return
+        later = channel.output_within(1.0)
+        if later:
+            first = channel.last_answer or ""
+            self.close()
+            raise ExternalSystemError(
+                f"{self._name()} printed {first[:200]!r} on stdout before its predictions "
+                f"were written, then {later[:200]!r}: the first line was not its answer. "
+                "stdout is reserved for one answer line per request, written after the "
+                "files (a library banner or a print there breaks the protocol); log to stderr"
+            )
 
     def _calibration(self) -> KittiCalibration:
         if self._calib is None:

@@ -7,7 +7,8 @@ Per frame (INPUT OUTPUT given): ``sleep`` (10 s, then answers), ``fork`` (starts
 that keeps stdout and stderr open for 60 s and writes its pid to ``$MT_HELPER_PID``,
 answers at once), ``chatty`` (writes 5 MB on stderr, then exits 1).
 Long-lived (requests on stdin): ``partial`` (prints half a line, then stalls), ``banner``
-(prints a banner before any request), ``two-lines`` (two lines per request), ``noisy``
+(prints a banner before any request), ``banner-slow-writer`` (a banner, and each
+predictions file left empty for half a second before it is written), ``two-lines`` (two lines per request), ``noisy``
 (2 MB on stderr per request), ``forking-server`` (a helper per process that outlives it).
 A request whose input is ``STALL`` is answered after a minute.
 """
@@ -45,8 +46,16 @@ def per_frame(mode: str, source: str, target: str) -> None:
     answer(target)
 
 
+def slow_answer(target: str) -> None:
+    """The predictions file exists, empty, for a while before it is written."""
+    with open(target, "w") as handle:
+        handle.flush()
+        time.sleep(0.5)
+        json.dump(EMPTY, handle)
+
+
 def serve(mode: str) -> None:
-    if mode == "banner":
+    if mode in ("banner", "banner-slow-writer"):
         print("Welcome to DetectorNet 3.1 (c) ACME", flush=True)
     if mode == "forking-server":
         helper(sys.argv[2])
@@ -55,7 +64,7 @@ def serve(mode: str) -> None:
         if parts[0] == "STALL":
             time.sleep(60)
         for target in parts[1::2]:
-            answer(target)
+            (slow_answer if mode == "banner-slow-writer" else answer)(target)
         if mode == "partial":
             sys.stdout.write("do")
             sys.stdout.flush()

@@ -95,6 +95,19 @@ def test_stray_output_on_stdout_is_named(mode: str) -> None:
     assert not detector.running
 
 
+def test_a_banner_taken_for_the_answer_is_named_even_if_the_file_is_half_written() -> None:
+    """The banner is read as the first answer while the program is still writing its
+    predictions: the file is empty then. Its real answer follows; the error names the
+    banner, not the file (before: "wrote garbage", depending on timing)."""
+    detector = served("banner-slow-writer", timeout=30)
+    with pytest.raises(ExternalSystemError, match="stdout is reserved") as info:
+        detector(CLOUD)
+    message = str(info.value)
+    assert "Welcome to DetectorNet" in message and "'done" in message
+    assert "the first line was not its answer" in message
+    assert not detector.running
+
+
 def test_a_long_lived_processs_stderr_stays_bounded() -> None:
     with served("noisy", timeout=30) as detector:
         for _ in range(4):  # 8 MB written in all
