@@ -7,8 +7,9 @@ braking, they would still meet at the same point. The only excuse is physics: a 
 that even full braking, from the moment the pedestrian became a hazard (visible, on the
 carriageway, walking towards the car's path) and after the car's own delays, could not
 have avoided; an independent judge decides that from the scenario alone
-(``pytest_metamorphic.driving.judge.judge_avoidable``). Iqbal found with this relation that an AEB assumed a
-3.6 m lane on a 10 m road; the second test below shows it catching exactly that fault.
+(``pytest_metamorphic.driving.judge.judge_avoidable``). Iqbal found with this relation
+that an AEB assumed a 3.6 m lane on a 10 m road; the second test below shows it catching
+exactly that fault.
 
 Copy this file to test your own AEB: make ``my_aeb`` return your controller. It is
 called every 10 ms with an :class:`~pytest_metamorphic.driving.kinematics.Observation`

@@ -8,8 +8,9 @@ that keeps stdout and stderr open for 60 s and writes its pid to ``$MT_HELPER_PI
 answers at once), ``chatty`` (writes 5 MB on stderr, then exits 1).
 Long-lived (requests on stdin): ``partial`` (prints half a line, then stalls), ``banner``
 (prints a banner before any request), ``banner-slow-writer`` (a banner, and each
-predictions file left empty for half a second before it is written), ``two-lines`` (two lines per request), ``noisy``
-(2 MB on stderr per request), ``forking-server`` (a helper per process that outlives it).
+predictions file left empty for half a second before it is written), ``two-lines`` (two
+lines per request), ``noisy`` (2 MB on stderr per request), ``forking-server`` (a helper
+per process that outlives it).
 A request whose input is ``STALL`` is answered after a minute.
 """
 
