@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from pytest_metamorphic.core.arguments import check_number
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.kinematics import BrakeCommand, Observation, Track, is_relevant
 
@@ -93,9 +94,7 @@ class AEBController:
                 f"pedestrian_region={self.pedestrian_region!r} must be 'road' or 'lane'"
             )
         for name in ("fcw_deceleration", "pb1_deceleration", "pb2_deceleration", "fb_deceleration"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InvalidArgument(f"{name}={value!r} must be a positive number")
+            check_number(getattr(self, name), name, positive=True)
 
     def reset(self) -> None:
         """Forget the latched stage (called by the simulator before each run)."""
@@ -195,9 +194,7 @@ class TTCController:
 
     def __post_init__(self) -> None:
         for name in ("lateral_margin", "time_margin"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise InvalidArgument(f"{name}={value!r} must be a number >= 0")
+            check_number(getattr(self, name), name)
 
     def reset(self) -> None:
         self.braking = False

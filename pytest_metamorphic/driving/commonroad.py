@@ -44,7 +44,8 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.campaign import CONTROLLERS, CampaignSource, ControllerFactory
 from pytest_metamorphic.driving.judge import judge_avoidable
 from pytest_metamorphic.driving.kinematics import SimulationResult
-from pytest_metamorphic.driving.scenario import Keep, Scenario
+from pytest_metamorphic.driving.roads import RoadGeometry
+from pytest_metamorphic.driving.scenario import Keep, PedestrianMotion, Scenario
 from pytest_metamorphic.driving.simulators import Simulator, check_simulator, run_simulator
 
 __all__ = [
@@ -76,13 +77,29 @@ def _pycrcc() -> Any:
     return pycrcc
 
 
+def _car_pose(scenario: Scenario, front_s: float) -> tuple[float, float, float]:
+    """World ``(x, y, heading)`` of the car's centre with its bumper at ``front_s``."""
+    vehicle, road = scenario.vehicle, scenario.road
+    centre = front_s - vehicle.length / 2
+    x, y, _ = road.point(centre, scenario.ego_offset)
+    return x, y, road.chord_heading(centre, vehicle.wheelbase)
+
+
+def _pedestrian_pose(
+    road: RoadGeometry, motion: PedestrianMotion, t: float
+) -> tuple[float, float, float]:
+    """World ``(x, y, heading)`` of the dummy at time ``t``."""
+    s, d = motion.road_position(t)
+    x, y, heading = road.point(float(s), float(d))
+    return x, y, heading + motion.facing
+
+
 class _Boxes:
     """The scenario's actors as CommonRoad oriented boxes at any time."""
 
     def __init__(self, scenario: Scenario, pycrcc: Any) -> None:
         self.scenario, self.pycrcc = scenario, pycrcc
         self.motion = scenario.pedestrian()
-        self.turn = math.copysign(math.pi / 2, self.motion.dd) if abs(self.motion.dd) > 0.5 else 0.0
         road = scenario.road
         self.parked = [
             self._box(*road.point(p.s, p.d), p.footprint.length, p.footprint.width)
@@ -93,18 +110,14 @@ class _Boxes:
         return self.pycrcc.RectOBB(length / 2, width / 2, heading, x, y)
 
     def car(self, front_s: float) -> Any:
-        scenario = self.scenario
-        vehicle, road = scenario.vehicle, scenario.road
-        centre = front_s - vehicle.length / 2
-        x, y, _ = road.point(centre, scenario.ego_offset)
-        heading = road.chord_heading(centre, vehicle.wheelbase)
-        return self._box(x, y, heading, vehicle.length, vehicle.width)
+        vehicle = self.scenario.vehicle
+        return self._box(*_car_pose(self.scenario, front_s), vehicle.length, vehicle.width)
 
     def pedestrian(self, t: float) -> Any:
-        s, d = self.motion.road_position(t)
-        x, y, heading = self.scenario.road.point(float(s), float(d))
         footprint = self.motion.footprint
-        return self._box(x, y, heading + self.turn, footprint.length, footprint.width)
+        return self._box(
+            *_pedestrian_pose(self.scenario.road, self.motion, t), footprint.length, footprint.width
+        )
 
     def touches(self, t: float, front_s: float) -> bool:
         car = self.car(front_s)
@@ -215,10 +228,9 @@ def commonroad_scenario(
         dx, dy = np.asarray(x) - turn_x, np.asarray(y) - turn_y
         return cos * dx - sin * dy, sin * dx + cos * dy
 
-    def pose(s_: float, d_: float, heading: float | None = None) -> tuple[float, float, float]:
-        x, y, h = road.point(s_, d_)
-        tx, ty = turned(x, y)
-        return float(tx), float(ty), (h if heading is None else heading) - turn_h
+    def pose(world: tuple[float, float, float]) -> tuple[float, float, float]:
+        tx, ty = turned(world[0], world[1])
+        return float(tx), float(ty), world[2] - turn_h
 
     # The lanelet reaches past both ends of the road where the car starts before it
     # (positions extrapolate along the end segments), so CriMe finds the car on it.
@@ -251,22 +263,10 @@ def commonroad_scenario(
         trajectory = TrajectoryPrediction(Trajectory(1, states[1:]), shape)
         return DynamicObstacle(oid, kind, shape, initial, trajectory)
 
-    car = [
-        pose(f - vehicle.length / 2, scenario.ego_offset,
-             road.chord_heading(f - vehicle.length / 2, vehicle.wheelbase))
-        for f in fronts
-    ]  # fmt: skip
-
+    car = [pose(_car_pose(scenario, f)) for f in fronts]
     motion = scenario.pedestrian()
     times = np.arange(len(fronts), dtype=np.float64) * dt
-    walked_s, walked_d = motion.road_position(times)
-    turn = math.copysign(math.pi / 2, motion.dd) if abs(motion.dd) > 0.5 else 0.0
-    walker = [
-        (x, y, h + turn)
-        for x, y, h in (
-            pose(a, b) for a, b in zip(walked_s.tolist(), walked_d.tolist(), strict=True)
-        )
-    ]
+    walker = [pose(_pedestrian_pose(road, motion, t)) for t in times.tolist()]
     footprint = motion.footprint
     result.add_objects([
         obstacle(_EGO_ID, ObstacleType.CAR, car, list(speeds), vehicle.length, vehicle.width),
@@ -274,7 +274,7 @@ def commonroad_scenario(
                  motion.velocity(times).tolist(), footprint.length, footprint.width),
     ])  # fmt: skip
     for index, parked in enumerate(scenario.obstructions()):
-        x, y, h = pose(parked.s, parked.d)
+        x, y, h = pose(road.point(parked.s, parked.d))
         initial = InitialState(
             position=np.array([x, y]), orientation=h, velocity=0.0, acceleration=0.0,
             yaw_rate=0.0, slip_angle=0.0, time_step=0,

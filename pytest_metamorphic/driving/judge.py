@@ -39,13 +39,13 @@ millisecond. Nothing here calls a controller, the simulator, its sensor or
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_metamorphic.core.arguments import check_number
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.scenario import KMH, Scenario
 
@@ -166,12 +166,7 @@ def judge_avoidable(
         raise InvalidArgument(f"scenario={scenario!r} must be a Scenario")
     if relevance not in RELEVANCE_STANDARDS:
         raise InvalidArgument(f"relevance={relevance!r} must be one of {list(RELEVANCE_STANDARDS)}")
-    if not (
-        isinstance(decision_time, (int, float))
-        and math.isfinite(decision_time)
-        and decision_time >= 0
-    ):
-        raise InvalidArgument(f"decision_time={decision_time!r} must be a number >= 0")
+    check_number(decision_time, "decision_time")
     vehicle = scenario.vehicle
     reaction = decision_time + vehicle.system_delay
     standard = (

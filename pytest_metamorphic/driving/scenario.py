@@ -221,6 +221,11 @@ class PedestrianMotion:
         return self.footprint.length if abs(self.ds) > 0.5 else self.footprint.width
 
     @property
+    def facing(self) -> float:
+        """Heading relative to the road (radians): +-pi/2 crossing, 0 walking along it."""
+        return math.copysign(math.pi / 2, self.dd) if abs(self.dd) > 0.5 else 0.0
+
+    @property
     def extent_across_road(self) -> float:
         return self.footprint.width if abs(self.ds) > 0.5 else self.footprint.length
 

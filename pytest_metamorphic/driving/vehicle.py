@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.arguments import check_number
 
 __all__ = ["EURO_NCAP_CAR", "TYPICAL_CAR", "VehicleSpec"]
 
@@ -38,13 +37,9 @@ class VehicleSpec:
 
     def __post_init__(self) -> None:
         for name in ("length", "width", "wheelbase", "max_deceleration"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InvalidArgument(f"VehicleSpec {name}={value!r} must be a positive number")
+            check_number(getattr(self, name), f"VehicleSpec {name}", positive=True)
         for name in ("brake_delay", "sensor_latency"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise InvalidArgument(f"VehicleSpec {name}={value!r} must be a number >= 0")
+            check_number(getattr(self, name), f"VehicleSpec {name}")
 
     @property
     def system_delay(self) -> float:

@@ -45,7 +45,7 @@ class _Actor:
                 raise ValueError("a moving actor needs the simulation's times")
             self.along, self.across = motion.extent_along_road, motion.extent_across_road
             # Crossing dummies face across the road, longitudinal ones along it.
-            self.turn = math.copysign(math.pi / 2, motion.dd) if abs(motion.dd) > 0.5 else 0.0
+            self.turn = motion.facing
             s, d = motion.road_position(times)
             speed = motion.velocity(times)
             self.s, self.d = s.tolist(), d.tolist()

@@ -240,7 +240,7 @@ class _Dummy:
         self.scenario, self.motion = scenario, motion
         self.along, self.across = motion.extent_along_road, motion.extent_across_road
         # A crossing dummy faces across the road, a longitudinal one along it.
-        self.turn = math.copysign(math.pi / 2, motion.dd) if abs(motion.dd) > 0.5 else 0.0
+        self.turn = motion.facing
         x, y, heading = self._pose(0.0)
         self.vehicle = vehicle_class(road, [x, y], heading=heading, speed=0.0)
         _resize(self.vehicle, motion.footprint.length, motion.footprint.width)
