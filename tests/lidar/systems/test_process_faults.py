@@ -97,14 +97,16 @@ def test_stray_output_on_stdout_is_named(mode: str) -> None:
 
 def test_a_banner_taken_for_the_answer_is_named_even_if_the_file_is_half_written() -> None:
     """The banner is read as the first answer while the program is still writing its
-    predictions: the file is empty then. Its real answer follows; the error names the
-    banner, not the file (before: "wrote garbage", depending on timing)."""
+    predictions: the file is empty then (or, on a loaded machine, not yet created). Its
+    real answer follows; the error names the banner, not the file (before: "wrote
+    garbage", depending on timing)."""
     detector = served("banner-slow-writer", timeout=30)
     with pytest.raises(ExternalSystemError, match="stdout is reserved") as info:
         detector(CLOUD)
     message = str(info.value)
-    assert "Welcome to DetectorNet" in message and "'done" in message
-    assert "the first line was not its answer" in message
+    assert "Welcome to DetectorNet" in message and "garbage" not in message
+    if "before writing" not in message:  # the file existed, half written
+        assert "the first line was not its answer" in message and "'done" in message
     assert not detector.running
 
 
