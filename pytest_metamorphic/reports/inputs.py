@@ -148,7 +148,11 @@ def _decode_frame(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
 
     record = folder / RECORD
     cloud_file = inside(folder, spec.get("cloud"), field=f"{name}.cloud", path=record)
-    cloud = read_pcd(cloud_file, zeros="keep")
+    try:
+        cloud = read_pcd(cloud_file, zeros="keep")
+    except DataError as error:
+        # the record points at the file: name both, so a user knows which record to fix
+        raise DataError(f"{name}.cloud ({cloud_file.name}): {error}", path=record) from None
     roi = field(spec, "roi", (dict, type(None)), where=name, path=record, default=None)
     if roi is not None:
         if "polygons" not in roi:

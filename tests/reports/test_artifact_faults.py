@@ -76,6 +76,17 @@ def test_a_cloud_path_cannot_leave_the_folder(tmp_path: Path, outside: Path, how
     assert "root:x" not in str(info.value)  # before: the first line was echoed
 
 
+def test_a_missing_cloud_file_names_the_record_and_the_field(tmp_path: Path) -> None:
+    # found by the outside-data fuzz test: the error named only the missing file, so a
+    # user with many artifacts could not tell which record pointed at it
+    folder = make(tmp_path / "a", source=frame_spec("0"))
+    with pytest.raises(DataError) as info:
+        load_case(folder)
+    message = str(info.value)
+    assert "record.json" in message and "source.cloud (0)" in message
+    assert "No such file" in message or "does not exist" in message
+
+
 def test_a_record_nested_too_deeply_is_a_data_error(tmp_path: Path) -> None:
     folder = make(tmp_path / "a")
     (folder / "record.json").write_text("[" * 100_000 + "]" * 100_000)
