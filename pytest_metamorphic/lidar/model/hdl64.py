@@ -18,8 +18,10 @@ instant per azimuth step, and the vehicle does not move during a sweep.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -204,6 +206,26 @@ class BeamLayout:
           ``(start, stop)`` radians; only firing azimuths ``start <= a < stop`` are kept
           (before per-laser offsets). Use it for partial sweeps in fast tests.
         """
+        if azimuth_range is None:
+            return self._full_sweep
+        return self._sweep(azimuth_range)
+
+    @functools.cached_property
+    def _full_sweep(self) -> Rays:
+        # Every render of a whole sweep casts the same 133k rays: build them once per
+        # layout (read-only, since every render shares them).
+        rays = self._sweep(None)
+        for array in (rays.directions, rays.ring, rays.azimuth):
+            array.setflags(write=False)
+        return rays
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The cached sweep is rebuilt where it is needed, not shipped to workers.
+        state = dict(self.__dict__)
+        state.pop("_full_sweep", None)
+        return state
+
+    def _sweep(self, azimuth_range: tuple[float, float] | None) -> Rays:
         firing = np.arange(self.firings_per_revolution) * self.azimuth_step
         if azimuth_range is not None:
             start, stop = (float(v) for v in azimuth_range)

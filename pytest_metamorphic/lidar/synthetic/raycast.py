@@ -83,18 +83,41 @@ def cast_rays(
 def _cast_embree(
     mesh: SceneMesh, directions: NDArray[np.float64]
 ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+    """First hits through Embree, with trimesh's scaling and its exact plane-line ranges.
+
+    The same arithmetic as ``RayMeshIntersector.intersects_id(multiple_hits=False,
+    return_locations=True)`` (trimesh 4), so the points are bit-identical to it, without
+    its multiple-hit bookkeeping: rays from the origin need no offsets, and the one
+    pass it makes for first hits is all there is.
+    """
     try:
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
     except ImportError as error:  # pragma: no cover - depends on the environment
         raise InvalidArgument(f"engine='embree' needs embreex: {error}") from None
     geometry = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    intersector = RayMeshIntersector(geometry)
-    origins = np.zeros_like(directions)
-    face, ray, locations = intersector.intersects_id(
-        origins, directions, multiple_hits=False, return_locations=True
+    # trimesh's _EmbreeWrap: vertices moved to their minimum and scaled to a ~100 m box.
+    origin = geometry.vertices.min(axis=0)
+    scale = 100.0 / geometry.scale
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(
+        scene=scene,
+        vertices=((geometry.vertices - origin) * scale).astype(np.float32),
+        indices=geometry.faces.astype(np.int32),
     )
-    distance = np.sqrt((np.asarray(locations, dtype=np.float64) ** 2).sum(axis=1))
-    return np.asarray(ray, dtype=np.intp), np.asarray(face, dtype=np.intp), distance
+    unit = trimesh.util.unitize(directions)
+    origins = np.broadcast_to(((0.0 - origin) * scale).astype(np.float32), directions.shape)
+    query = scene.run(np.ascontiguousarray(origins), unit.astype(np.float32))
+    ray = np.flatnonzero(query != -1)
+    face = query[ray].astype(np.intp)
+    # trimesh.intersections.planes_lines with line origins at 0: t = (p0 . n) / (d . n).
+    normals = geometry.face_normals[face]
+    along = trimesh.util.diagonal_dot(geometry.triangles[face, 0, :], normals)
+    facing = trimesh.util.diagonal_dot(unit[ray], normals)
+    valid = np.abs(facing) > 1e-5
+    locations = unit[ray[valid]] * (along[valid] / facing[valid]).reshape((-1, 1))
+    distance = np.sqrt((locations**2).sum(axis=1))
+    return ray[valid], face[valid], distance
 
 
 def _cast_numpy(

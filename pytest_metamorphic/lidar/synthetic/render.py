@@ -97,8 +97,10 @@ def render(
 def _cos_incidence(
     mesh: SceneMesh, face: NDArray[np.intp], directions: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    triangles = mesh.vertices[mesh.faces[face]]
+    # Unit normals per face (a few thousand), gathered per hit (~120k): the same
+    # row-wise arithmetic as per hit, so the same values, at a fraction of the cost.
+    triangles = mesh.vertices[mesh.faces]
     normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     length = np.linalg.norm(normal, axis=1)
     normal = normal / np.where(length > 0, length, 1.0)[:, None]
-    return np.abs((normal * directions).sum(axis=1))
+    return np.abs((normal[face] * directions).sum(axis=1))
