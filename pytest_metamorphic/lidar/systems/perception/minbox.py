@@ -283,19 +283,59 @@ def _hull_candidates(
     """Per cluster, the points that may be hull vertices (others are strictly inside).
 
     ``xy`` holds the clusters contiguously (cluster ``c`` is rows ``starts[c]`` to
-    ``starts[c] + sizes[c]``). Clusters of more than ``_QHULL_FROM`` points are pruned
-    with qhull's hull: only points strictly inside it by more than ``_QHULL_MARGIN``
-    metres (far above its rounding) are dropped, so every true hull vertex survives.
-    qhull only prunes; the hull itself is always the exact monotone chain over what is
-    left, so the result cannot depend on qhull's choices or on the point order.
+    ``starts[c] + sizes[c]``). Two prunings, both vectorised, drop only points strictly
+    inside the hull by more than ``_QHULL_MARGIN`` metres (far above float64 rounding),
+    so every true hull vertex survives: the Akl-Toussaint octagon of every cluster's
+    extreme points in eight directions, then, for clusters still larger than
+    ``_QHULL_FROM`` points, qhull's hull. They only prune; the hull itself is always the
+    exact monotone chain over what is left, so the result cannot depend on them or on
+    the point order.
     """
+    keep = ~_inside_octagon(xy, sizes, starts)
     result = []
     for begin, size in zip(starts.tolist(), sizes.tolist(), strict=True):
-        chunk = xy[begin : begin + size]
-        if size > _QHULL_FROM:
+        chunk = xy[begin : begin + size][keep[begin : begin + size]]
+        if len(chunk) > _QHULL_FROM:
             chunk = chunk[~_inside_qhull(chunk)]
         result.append([tuple(v) for v in chunk.tolist()])
     return result
+
+
+# Directions of the octagon's vertices, counter-clockwise from +x: the support points of
+# a convex set for increasing angles follow its boundary counter-clockwise.
+_OCTAGON = np.array(
+    [[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1]], dtype=np.float64
+)
+
+
+def _inside_octagon(
+    xy: NDArray[np.float64], sizes: NDArray[np.intp], starts: NDArray[np.intp]
+) -> NDArray[np.bool_]:
+    """(n,) bool: strictly inside its cluster's octagon of extreme points, by the margin.
+
+    The octagon joins each cluster's extreme points in the eight ``_OCTAGON`` directions
+    (x + y and x - y of float32 coordinates are exact in float64, so the extremes are).
+    It lies inside the hull, so a point strictly inside it is not a hull vertex.
+    Repeated vertices (zero-length edges) are skipped; a degenerate octagon (a segment)
+    has edges both ways, and a single point no edge, so nothing is inside them.
+    """
+    labels = np.repeat(np.arange(len(sizes)), sizes)
+    projection = xy @ _OCTAGON.T  # (n, 8)
+    best = np.maximum.reduceat(projection, starts, axis=0)  # (k, 8)
+    rows, direction = np.nonzero(projection == best[labels])
+    corner = np.empty((len(sizes), 8), dtype=np.intp)
+    corner[labels[rows], direction] = rows  # one of the points reaching each extreme
+    corners = xy[corner]  # (k, 8, 2), counter-clockwise
+    ex, ey = (np.roll(corners, -1, axis=1) - corners).transpose(2, 0, 1)
+    length = np.hypot(ex, ey)
+    # Left of an edge (inside) by more than the margin: cross(edge, p - start) > margin *
+    # length, with cross = ex * py - ey * px - (ex * sy - ey * sx). Rounding is below
+    # 1e-13 * length at LiDAR ranges, far under the margin.
+    offset = ex * corners[..., 1] - ey * corners[..., 0] + _QHULL_MARGIN * length
+    offset[length == 0.0] = -np.inf  # a repeated corner is no edge
+    inside = (xy[:, 1:2] * ex[labels] - xy[:, 0:1] * ey[labels] > offset[labels]).all(axis=1)
+    # All corners one point: every point is that point, none is inside.
+    return inside & (length > 0.0).any(axis=1)[labels]
 
 
 def _inside_qhull(xy: NDArray[np.float64]) -> NDArray[np.bool_]:

@@ -165,7 +165,9 @@ def test_interior_pruning_changes_nothing(
     labels = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
     pruned = min_boxes(points, labels)
     with monkeypatch_module.context() as patch:
+        # no pruning at all: neither the octagon nor qhull
         patch.setattr(minbox, "_QHULL_FROM", 10**9)
+        patch.setattr(minbox, "_inside_octagon", lambda xy, *_: np.zeros(len(xy), dtype=bool))
         whole = min_boxes(points, labels)
     with monkeypatch_module.context() as patch:
         patch.setattr(minbox, "_QHULL_FROM", 0)
@@ -174,6 +176,40 @@ def test_interior_pruning_changes_nothing(
         _assert_same_box(a, b)
     for a, b in zip(pruned, whole, strict=True):
         _assert_same_box(a, b)
+
+
+@settings(max_examples=80)
+@given(st.lists(clusters(max_points=80), min_size=1, max_size=6))
+def test_the_octagon_never_prunes_a_hull_vertex(parts: list[np.ndarray]) -> None:
+    xy = np.concatenate(parts)[:, :2].astype(np.float32).astype(np.float64)
+    sizes = np.array([len(p) for p in parts])
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    inside = minbox._inside_octagon(xy, sizes, starts)
+    for begin, size in zip(starts, sizes, strict=True):
+        chunk = [tuple(p) for p in xy[begin : begin + size].tolist()]
+        kept = {p for p, drop in zip(chunk, inside[begin : begin + size], strict=True) if not drop}
+        assert set(minbox._convex_hull(chunk)) <= kept
+
+
+@settings(max_examples=80)
+@given(st.lists(st.tuples(st.integers(-4, 4), st.integers(-4, 4)), min_size=1, max_size=40))
+def test_the_octagon_keeps_hull_vertices_of_lattice_points(cells: list[tuple[int, int]]) -> None:
+    # exact ties and collinear points everywhere: extremes shared by several points
+    xy = np.array(cells, dtype=np.float64) * 0.25 + 30.0
+    inside = minbox._inside_octagon(xy, np.array([len(xy)]), np.array([0]))
+    kept = {tuple(p) for p, drop in zip(xy.tolist(), inside, strict=True) if not drop}
+    assert set(minbox._convex_hull([tuple(p) for p in xy.tolist()])) <= kept
+
+
+def test_the_octagon_keeps_degenerate_clusters() -> None:
+    # one repeated point, a segment, a square with its centre
+    xy = np.array(
+        [[1, 1]] * 5 + [[0, 0], [1, 1], [2, 2], [3, 3]] + [[0, 0], [2, 0], [2, 2], [0, 2], [1, 1]],
+        dtype=np.float64,
+    )
+    sizes, starts = np.array([5, 4, 5]), np.array([0, 5, 9])
+    inside = minbox._inside_octagon(xy, sizes, starts)
+    assert inside.tolist() == [False] * 13 + [True]
 
 
 @pytest.fixture(scope="module")
