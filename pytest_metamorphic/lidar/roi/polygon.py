@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -146,8 +146,13 @@ def _on_segment(ax: Any, ay: Any, bx: Any, by: Any, px: Any, py: Any) -> NDArray
     )
 
 
-def _as_xy(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
-    """Normalise query points: (n, >=2) array_like or PointCloud -> (n, 2) float64."""
+def _as_xy(
+    xy: ArrayLike, name: str = "xy", *, order: Literal["C", "F"] = "C"
+) -> NDArray[np.float64]:
+    """Normalise query points: (n, >=2) array_like or PointCloud -> (n, 2) float64.
+
+    ``order="F"`` keeps each coordinate contiguous (for column-wise work on big clouds).
+    """
     points = getattr(xy, "points", xy)
     try:
         array = np.asarray(points)
@@ -159,7 +164,7 @@ def _as_xy(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
         raise InvalidArgument(f"{name} must have shape (n, 2) or (n, >=2), got {array.shape}")
     if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
         raise InvalidArgument(f"{name} must be numeric, got dtype {array.dtype}")
-    return np.asarray(array[:, :2], dtype=np.float64)
+    return np.asarray(array[:, :2], dtype=np.float64, order=order)
 
 
 def _points_in_polygon(xy: NDArray[np.float64], polygon: NDArray[np.float64]) -> NDArray[np.bool_]:

@@ -29,6 +29,21 @@ class _Grid:
         e = self.extent
         return (xy[:, 0] >= -e) & (xy[:, 0] < e) & (xy[:, 1] >= -e) & (xy[:, 1] < e)
 
+    def cells(self, xy: NDArray[np.float64]) -> tuple[NDArray[np.bool_], NDArray[np.intp]]:
+        """``(exists, flat)``: which points lie on the grid, and their row-major cell.
+
+        ``flat = ix * size + iy`` with ``ix``, ``iy`` from :meth:`index` (the same
+        arithmetic); 0 where a point is off the grid (or not finite).
+        """
+        exists = self.exists(xy)
+        # Whole columns at once (no gathers): the cell of every point, then masked.
+        with np.errstate(invalid="ignore"):
+            ix = np.floor((xy[:, 0] + self.extent) / self.cell_size)
+            iy = np.floor((xy[:, 1] + self.extent) / self.cell_size)
+            ix *= self.size
+            ix += iy  # integers below 2**53: exact in float64
+        return exists, np.where(exists, ix, 0.0).astype(np.intp)
+
     def centres(self, index: NDArray[np.integer]) -> NDArray[np.float64]:
         return (np.asarray(index, dtype=np.float64) + 0.5) * self.cell_size - self.extent
 

@@ -279,7 +279,7 @@ class ROI:
         -------
         (n,) bool
         """
-        points = _as_xy(xy)
+        points = _as_xy(xy, order="F")  # column-wise below
         if method == "raster":
             return self._contains_raster(points)
         if method == "exact":
@@ -287,27 +287,16 @@ class ROI:
         raise InvalidArgument(f"method={method!r} must be 'raster' or 'exact'")
 
     def _contains_raster(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
-        grid = self._grid
-        result = np.zeros(len(xy), dtype=bool)
-        exists = grid.exists(xy)
-        # NaN compares False above, so non-finite points are simply outside.
-        rows = np.flatnonzero(exists)
-        ix = grid.index(xy[rows, 0])
-        iy = grid.index(xy[rows, 1])
-        result[rows] = self.bitmap[ix, iy]
-        return result
+        # NaN compares False in exists, so non-finite points are simply outside.
+        exists, cell = self._grid.cells(xy)
+        return self._flat_bitmap[cell] & exists
 
     def _contains_exact(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
-        grid = self._grid
         touched, centre_inside = self._exact_grids
-        result = np.zeros(len(xy), dtype=bool)
-        exists = grid.exists(xy)
-        rows = np.flatnonzero(exists)
-        ix = grid.index(xy[rows, 0])
-        iy = grid.index(xy[rows, 1])
+        exists, cell = self._grid.cells(xy)
         # A cell no edge touches lies wholly inside or wholly outside: its centre decides.
-        result[rows] = centre_inside[ix, iy]
-        undecided = np.concatenate([rows[touched[ix, iy]], np.flatnonzero(~exists)])
+        result = centre_inside.ravel()[cell] & exists
+        undecided = np.flatnonzero(touched.ravel()[cell] | ~exists)
         if len(undecided):
             subset = xy[undecided]
             finite = np.isfinite(subset).all(axis=1)
@@ -367,6 +356,11 @@ class ROI:
             bitmap = self._cache["bitmap"] = self._rasterise()
             bitmap.setflags(write=False)
         return bitmap
+
+    @property
+    def _flat_bitmap(self) -> NDArray[np.bool_]:
+        """The bitmap row-major as one vector (a view), for :meth:`_Grid.cells` indices."""
+        return self.bitmap.reshape(-1)
 
     def _rasterise(self) -> NDArray[np.bool_]:
         grid = self._grid
