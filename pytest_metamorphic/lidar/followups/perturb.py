@@ -36,7 +36,7 @@ from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box
-from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.roi import ROI, CellSet
 
 __all__ = [
     "NOISE_INSTANCE",
@@ -183,21 +183,21 @@ def _frame_ranges(frame: Frame) -> tuple[tuple[float, float], tuple[float, float
 def _seeded_points(
     frame: Frame,
     seeds: ArrayLike,
-    origins: NDArray[np.float64],
+    cells: CellSet,
     region: ROI,
     limit: float,
     what: str,
 ) -> NDArray[np.float32]:
-    """Points for ``seeds`` in the cells at ``origins``, z and intensity over the frame's ranges."""
+    """Points for ``seeds`` in ``cells``, z and intensity over the frame's ranges."""
     z_range, intensity_range = _frame_ranges(frame)
     return _place_points(
-        _as_seeds(seeds), origins, region.cell_size, limit, z_range, intensity_range, what
+        _as_seeds(seeds), cells, region.cell_size, limit, z_range, intensity_range, what
     )
 
 
 def _place_points(
     seeds: NDArray[np.int64],
-    origins: NDArray[np.float64],
+    cells: CellSet,
     cell_size: float,
     max_range: float,
     z_range: tuple[float, float],
@@ -209,14 +209,14 @@ def _place_points(
     points = np.empty((n, 4), dtype=np.float32)
     if n == 0:
         return points
-    if len(origins) == 0:
+    if len(cells) == 0:
         raise DataError(f"there is no room {what} within {max_range} m of the sensor")
     xy = np.empty((n, 2))
     pending = np.arange(n)
     for attempt in range(_MAX_ATTEMPTS):
         u = seeded_uniforms(seeds[pending], 3 * attempt + np.arange(3))
-        cell = np.minimum((u[:, 0] * len(origins)).astype(np.intp), len(origins) - 1)
-        candidate = origins[cell] + u[:, 1:3] * cell_size
+        cell = np.minimum((u[:, 0] * len(cells)).astype(np.intp), len(cells) - 1)
+        candidate = cells.origins(cell) + u[:, 1:3] * cell_size
         inside = (candidate**2).sum(axis=1) <= max_range**2
         xy[pending[inside]] = candidate[inside]
         pending = pending[~inside]
@@ -374,8 +374,8 @@ class NoiseOutsideROI(_InjectedPoints):
         """
         region = _frame_roi(frame, roi)
         limit = _check_range(region, max_range, margin_cells)
-        origins = region.cell_origins("free", margin_cells=int(margin_cells), max_range=limit)
-        return cls(_seeded_points(frame, seeds, origins, region, limit, "outside the ROI"))
+        cells = region.cells("free", margin_cells=int(margin_cells), max_range=limit)
+        return cls(_seeded_points(frame, seeds, cells, region, limit, "outside the ROI"))
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -408,10 +408,12 @@ class NoiseInsideROI(_InjectedPoints):
             raise InvalidArgument(f"clearance={clearance!r} must be a number of metres")
         if not (math.isfinite(clearance) and clearance >= 0):
             raise InvalidArgument(f"clearance={clearance!r} must be >= 0")
-        origins = region.cell_origins("interior", margin_cells=int(margin_cells), max_range=limit)
-        origins = origins[~_near_boxes(origins, region.cell_size, boxes, float(clearance))]
+        cells = region.cells("interior", margin_cells=int(margin_cells), max_range=limit)
+        cells = cells.subset(
+            ~_near_boxes(cells.origins(), region.cell_size, boxes, float(clearance))
+        )
         where = "inside the ROI away from obstacles"
-        return cls(_seeded_points(frame, seeds, origins, region, limit, where))
+        return cls(_seeded_points(frame, seeds, cells, region, limit, where))
 
 
 def _draw_seeds(n: Any, rng: Any) -> NDArray[np.int64]:

@@ -7,6 +7,7 @@ junctions built from road centre lines).
 """
 
 from pytest_metamorphic.lidar.roi.polygon import validate_polygon
+from pytest_metamorphic.lidar.roi.raster import CellSet
 from pytest_metamorphic.lidar.roi.region import ROI, ContainmentMethod
 
-__all__ = ["ROI", "ContainmentMethod", "validate_polygon"]
+__all__ = ["ROI", "CellSet", "ContainmentMethod", "validate_polygon"]

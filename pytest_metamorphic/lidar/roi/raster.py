@@ -48,6 +48,45 @@ class _Grid:
         return (np.asarray(index, dtype=np.float64) + 0.5) * self.cell_size - self.extent
 
 
+class CellSet:
+    """Some cells of an ROI's grid, in row-major order: how many, and where any of them is.
+
+    What sampling needs from hundreds of thousands of free cells: their count, and the
+    lower-left corners of the few drawn (the corners of all of them are 16 bytes a cell,
+    ~10 MB for a 120 m disc, built per ROI and never read).
+
+    Attributes
+    ----------
+    flat : (k,) intp
+      Row-major cell indices ``ix * size + iy``, ascending; read-only.
+    """
+
+    def __init__(self, flat: NDArray[np.intp], grid: _Grid) -> None:
+        flat.setflags(write=False)
+        self.flat = flat
+        self._grid = grid
+        # Lower cell edges per axis index, as ROI.cell_origin computes them.
+        index = np.arange(grid.size, dtype=np.float64)
+        self._lower = index * grid.cell_size - grid.extent
+
+    def __len__(self) -> int:
+        return len(self.flat)
+
+    def origins(self, pick: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+        """(m, 2) float64: lower-left corners of cells ``pick`` (positions in this set),
+        or of all cells."""
+        flat = self.flat if pick is None else self.flat[pick]
+        ix, iy = np.divmod(flat, self._grid.size)
+        out = np.empty((len(flat), 2))
+        out[:, 0] = self._lower[ix]
+        out[:, 1] = self._lower[iy]
+        return out
+
+    def subset(self, keep: NDArray[np.bool_]) -> CellSet:
+        """The cells where ``keep`` (one bool per cell of this set) is true."""
+        return CellSet(self.flat[keep], self._grid)
+
+
 def _scan_intervals(
     u: NDArray[np.float64],
     v: NDArray[np.float64],

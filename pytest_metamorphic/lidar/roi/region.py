@@ -44,7 +44,13 @@ from pytest_metamorphic.lidar.roi.polygon import (
     _signed_area,
     validate_polygon,
 )
-from pytest_metamorphic.lidar.roi.raster import _dilate, _fill_runs, _Grid, _scan_intervals
+from pytest_metamorphic.lidar.roi.raster import (
+    CellSet,
+    _dilate,
+    _fill_runs,
+    _Grid,
+    _scan_intervals,
+)
 from pytest_metamorphic.lidar.roi.roads import _road_pieces
 
 __all__ = ["ROI", "ContainmentMethod"]
@@ -486,14 +492,14 @@ class ROI:
             interior.setflags(write=False)
         return interior
 
-    def cell_origins(
+    def cells(
         self,
         which: Literal["free", "interior"],
         *,
         margin_cells: int = 1,
         max_range: float | None = None,
-    ) -> NDArray[np.float64]:
-        """Lower-left corners of the free or interior cells, for sampling points in them.
+    ) -> CellSet:
+        """The free or interior cells, for sampling points in them.
 
         Parameters
         ----------
@@ -502,6 +508,40 @@ class ROI:
         margin_cells : int
         max_range : float, optional
           Keep only cells that reach within this distance of the sensor (the origin).
+
+        Returns
+        -------
+        CellSet
+          In row-major cell order; cached per arguments.
+        """
+        if which not in ("free", "interior"):
+            raise InvalidArgument(f"which={which!r} must be 'free' or 'interior'")
+        limit = None if max_range is None else _positive_float(max_range, "max_range")
+        key = ("cells", which, margin_cells, limit)
+        found = self._cache.get(key)
+        if found is None:
+            if which == "free":
+                cells = self.free_cells(margin_cells=margin_cells)
+            else:
+                cells = self.interior_cells(margin_cells=margin_cells)
+            if limit is not None:
+                # Closest point of each cell to the origin, per axis: the range test is
+                # one (size, size) comparison instead of one per cell.
+                index = np.arange(self.grid_size)
+                lower = self.cell_origin(index, index)[:, 0]
+                squared = np.clip(0.0, lower, lower + self.cell_size) ** 2
+                cells = cells & (squared[:, None] + squared[None, :] <= limit**2)
+            found = self._cache[key] = CellSet(np.flatnonzero(cells), self._grid)
+        return found
+
+    def cell_origins(
+        self,
+        which: Literal["free", "interior"],
+        *,
+        margin_cells: int = 1,
+        max_range: float | None = None,
+    ) -> NDArray[np.float64]:
+        """Lower-left corners of the free or interior cells (see :meth:`cells`).
 
         Returns
         -------
@@ -514,21 +554,9 @@ class ROI:
         key = ("origins", which, margin_cells, limit)
         origins = self._cache.get(key)
         if origins is None:
-            if which == "free":
-                cells = self.free_cells(margin_cells=margin_cells)
-            else:
-                cells = self.interior_cells(margin_cells=margin_cells)
-            # Lower cell edges per axis: the same values cell_origin() gives.
-            index = np.arange(self.grid_size)
-            lower = self.cell_origin(index, index)[:, 0]
-            if limit is not None:
-                # Closest point of each cell to the origin, per axis: the range test is
-                # one (size, size) comparison instead of one per cell.
-                squared = np.clip(0.0, lower, lower + self.cell_size) ** 2
-                cells = cells & (squared[:, None] + squared[None, :] <= limit**2)
-            ix, iy = np.nonzero(cells)
-            origins = self._cache[key] = np.stack([lower[ix], lower[iy]], axis=1)
+            origins = self.cells(which, margin_cells=margin_cells, max_range=limit).origins()
             origins.setflags(write=False)
+            self._cache[key] = origins
         return origins
 
     # -- value semantics -------------------------------------------------------------------

@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.obstacles import LABELS, SIZE_PRIORS, Box, Label
-from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.lidar.roi import ROI, CellSet
 from pytest_metamorphic.lidar.synthetic import BackgroundObject, MeshShape, Obstacle, Scene
 
 __all__ = [
@@ -287,14 +287,13 @@ def obstacle_slots(roi: ROI, max_distance: float) -> NDArray[np.float64]:
 
 
 @functools.lru_cache(maxsize=16)
-def _background_sites(roi: ROI, kind: str) -> NDArray[np.float64]:
-    """Centres of free cells far enough from the ROI for the largest object of a kind."""
+def _background_sites(roi: ROI, kind: str) -> CellSet:
+    """Free cells far enough from the ROI for the largest object of a kind."""
     (_, _, _), (length, width, _) = _BACKGROUND_SIZES[kind]
     radius = math.hypot(length, width) / 2.0
     margin = math.ceil((radius + 0.5) / roi.cell_size)
     limit = min(_BACKGROUND_RANGE, roi.raster_range)
-    origins = roi.cell_origins("free", margin_cells=margin, max_range=limit)
-    return origins + roi.cell_size / 2.0
+    return roi.cells("free", margin_cells=margin, max_range=limit)
 
 
 def _prior_size(label: Label, steps: Sequence[int]) -> tuple[float, float, float]:
@@ -368,7 +367,8 @@ def _clutter(spec: ClutterSpec, roi: ROI) -> BackgroundObject | None:
     size = tuple(lo + k / 10.0 * (hi - lo) for k, lo, hi in zip(size_steps, low, high, strict=True))
     if spec.kind != "building":
         size = (size[0], size[0], size[2])  # round things
-    x, y = candidates[spec.site % len(candidates)]
+    pick = np.array([spec.site % len(candidates)])
+    x, y = candidates.origins(pick)[0] + roi.cell_size / 2.0  # the cell's centre
     return BackgroundObject(
         spec.kind,  # type: ignore[arg-type]
         (float(x), float(y)),

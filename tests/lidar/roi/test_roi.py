@@ -307,6 +307,29 @@ def test_free_and_interior_cells_are_outside_and_inside_by_both_methods():
         roi.free_cells(margin_cells=-1)
 
 
+@pytest.mark.parametrize("which", ["free", "interior"])
+@pytest.mark.parametrize("max_range", [None, 25.0])
+def test_cell_sets_name_the_same_cells_as_the_masks(which: str, max_range: float | None) -> None:
+    roi = ROI.from_polygons([U_SHAPE], raster_range=40.0, extend_dist=0.3)
+    mask = roi.free_cells(margin_cells=2) if which == "free" else roi.interior_cells(margin_cells=2)
+    cells = roi.cells(which, margin_cells=2, max_range=max_range)  # type: ignore[arg-type]
+    assert cells is roi.cells(which, margin_cells=2, max_range=max_range)  # type: ignore[arg-type]
+    ix, iy = np.divmod(cells.flat, roi.grid_size)
+    assert mask[ix, iy].all()
+    if max_range is None:
+        assert len(cells) == mask.sum()
+    else:  # every cell reaches within max_range; the nearest corner of each decides
+        near = np.clip(0.0, roi.cell_origin(ix, iy), roi.cell_origin(ix, iy) + roi.cell_size)
+        assert (np.hypot(near[:, 0], near[:, 1]) <= max_range).all()
+    corners = roi.cell_origins(which, margin_cells=2, max_range=max_range)  # type: ignore[arg-type]
+    assert np.array_equal(cells.origins(), corners)
+    assert np.array_equal(cells.origins(np.array([0, len(cells) - 1])), corners[[0, -1]])
+    keep = np.arange(len(cells)) % 3 == 0
+    assert np.array_equal(cells.subset(keep).origins(), corners[keep])
+    with pytest.raises(ValueError):
+        cells.flat[0] = 0  # shared by every caller: read-only
+
+
 def test_roads_are_buffered_centrelines():
     road = SimpleNamespace(centerline=np.array([[-30.0, 0.0], [0.0, 0.0], [0.0, 30.0]]), width=7.0)
     roi = ROI.from_roads([road])
