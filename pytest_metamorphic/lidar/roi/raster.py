@@ -130,16 +130,21 @@ def _fill_runs(
     start: NDArray[np.intp],
     stop: NDArray[np.intp],
 ) -> None:
-    """Set ``grid[row, start:stop + 1]`` for every run, with a difference array."""
+    """Set ``grid[row, start:stop + 1]`` for every run (``start <= stop``).
+
+    The cells of all runs are enumerated as flat indices and set at once: the work is
+    the filled area (a road ROI: a few percent of the grid), not the whole grid.
+    """
     if len(row) == 0:
         return
     size = grid.shape[1]
     start = np.clip(start, 0, size - 1)
     stop = np.clip(stop, 0, size - 1)
-    diff = np.zeros((grid.shape[0], size + 1), dtype=np.int32)
-    np.add.at(diff, (row, start), 1)
-    np.add.at(diff, (row, stop + 1), -1)
-    grid |= np.cumsum(diff[:, :size], axis=1) > 0
+    lengths = stop - start + 1
+    first = np.cumsum(lengths) - lengths  # where each run's cells begin in the list
+    cells = np.arange(int(lengths.sum()), dtype=np.intp)
+    cells += np.repeat(row * size + start - first, lengths)
+    np.put(grid, cells, True)
 
 
 def _dilate(mask: NDArray[np.bool_], cells: int) -> NDArray[np.bool_]:
