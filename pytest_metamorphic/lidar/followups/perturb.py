@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.cloud import PointCloud, column_bounds
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.roi import ROI, CellSet
@@ -66,6 +66,7 @@ _MAX_ATTEMPTS = 64
 # Hash counters: position attempts use 0 .. 3 * _MAX_ATTEMPTS - 1, then z and intensity.
 _Z_COUNTER = 3 * _MAX_ATTEMPTS
 _INTENSITY_COUNTER = _Z_COUNTER + 1
+_TRIPLE = np.arange(3)
 _SHOWN_POINTS = 8
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -175,9 +176,10 @@ def _frame_ranges(frame: Frame) -> tuple[tuple[float, float], tuple[float, float
         raise DataError(
             f"{frame!r} is empty: noise z and intensity ranges come from the frame's points"
         )
-    # Column by column: a strided (n, 4) reduction along axis 0 is ~30x slower.
-    z, intensity = frame.cloud.points[:, 2], frame.cloud.points[:, 3]
-    return (float(z.min()), float(z.max())), (float(intensity.min()), float(intensity.max()))
+    # column_bounds folds rows so numpy reduces long rows: half the time of four
+    # strided column reductions, ~30x less than a plain (n, 4) reduction along axis 0.
+    low, high = column_bounds(frame.cloud.points)
+    return (float(low[2]), float(high[2])), (float(low[3]), float(high[3]))
 
 
 def _seeded_points(
@@ -213,8 +215,11 @@ def _place_points(
         raise DataError(f"there is no room {what} within {max_range} m of the sensor")
     xy = np.empty((n, 2))
     pending = np.arange(n)
+    # The first attempt's three values and z and intensity come from one hash of all
+    # seeds (each value depends only on its seed and counter, so nothing changes).
+    first = seeded_uniforms(seeds, [0, 1, 2, _Z_COUNTER, _INTENSITY_COUNTER])
     for attempt in range(_MAX_ATTEMPTS):
-        u = seeded_uniforms(seeds[pending], 3 * attempt + np.arange(3))
+        u = first if attempt == 0 else seeded_uniforms(seeds[pending], 3 * attempt + _TRIPLE)
         cell = np.minimum((u[:, 0] * len(cells)).astype(np.intp), len(cells) - 1)
         candidate = cells.origins(cell) + u[:, 1:3] * cell_size
         inside = (candidate**2).sum(axis=1) <= max_range**2
@@ -227,11 +232,10 @@ def _place_points(
             f"could not place {len(pending)} point(s) {what} in {_MAX_ATTEMPTS} attempts "
             "(the allowed region is almost entirely beyond max_range)"
         )
-    u = seeded_uniforms(seeds, [_Z_COUNTER, _INTENSITY_COUNTER])
     (z_low, z_high), (i_low, i_high) = z_range, intensity_range
     points[:, :2] = xy
-    points[:, 2] = z_low + u[:, 0] * (z_high - z_low)
-    points[:, 3] = i_low + u[:, 1] * (i_high - i_low)
+    points[:, 2] = z_low + first[:, 3] * (z_high - z_low)
+    points[:, 3] = i_low + first[:, 4] * (i_high - i_low)
     return points
 
 
