@@ -5,6 +5,7 @@ intersector.
 from __future__ import annotations
 
 import math
+import weakref
 from typing import Literal
 
 import numpy as np
@@ -74,10 +75,9 @@ def cast_rays(
         ray, face, distance = _cast_numpy(mesh, directions, max_distance)
     else:
         raise InvalidArgument(f"engine={engine!r} must be 'auto', 'embree' or 'numpy'")
+    # Both casters list the rays that hit in ascending order (np.flatnonzero).
     keep = distance <= max_distance
-    ray, face, distance = ray[keep], face[keep], distance[keep]
-    order = np.argsort(ray, kind="stable")
-    return ray[order], face[order], distance[order]
+    return ray[keep], face[keep], distance[keep]
 
 
 def _cast_embree(
@@ -88,7 +88,9 @@ def _cast_embree(
     The same arithmetic as ``RayMeshIntersector.intersects_id(multiple_hits=False,
     return_locations=True)`` (trimesh 4), so the points are bit-identical to it, without
     its multiple-hit bookkeeping: rays from the origin need no offsets, and the one
-    pass it makes for first hits is all there is.
+    pass it makes for first hits is all there is. Per-hit vectors are handled column by
+    column (row sums of (n, 3) arrays are strided and slow); each sum keeps the order
+    x + y + z of numpy's row reduction, so the values are the same.
     """
     try:
         from embreex import rtcore_scene
@@ -96,28 +98,65 @@ def _cast_embree(
     except ImportError as error:  # pragma: no cover - depends on the environment
         raise InvalidArgument(f"engine='embree' needs embreex: {error}") from None
     geometry = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
     # trimesh's _EmbreeWrap: vertices moved to their minimum and scaled to a ~100 m box.
-    origin = geometry.vertices.min(axis=0)
+    origin = vertices.min(axis=0)
     scale = 100.0 / geometry.scale
     scene = rtcore_scene.EmbreeScene()
     TriangleMesh(
         scene=scene,
-        vertices=((geometry.vertices - origin) * scale).astype(np.float32),
-        indices=geometry.faces.astype(np.int32),
+        vertices=((vertices - origin) * scale).astype(np.float32),
+        indices=np.asarray(mesh.faces).astype(np.int32),
     )
-    unit = trimesh.util.unitize(directions)
-    origins = np.broadcast_to(((0.0 - origin) * scale).astype(np.float32), directions.shape)
-    query = scene.run(np.ascontiguousarray(origins), unit.astype(np.float32))
+    unit, unit32 = _unit_rays(directions)
+    origins = np.empty(unit32.shape, dtype=np.float32)
+    origins[:] = ((0.0 - origin) * scale).astype(np.float32)
+    query = scene.run(origins, unit32)
     ray = np.flatnonzero(query != -1)
     face = query[ray].astype(np.intp)
     # trimesh.intersections.planes_lines with line origins at 0: t = (p0 . n) / (d . n).
-    normals = geometry.face_normals[face]
-    along = trimesh.util.diagonal_dot(geometry.triangles[face, 0, :], normals)
-    facing = trimesh.util.diagonal_dot(unit[ray], normals)
+    # Rows gathered with np.take (several times faster than fancy indexing of (n, 3)),
+    # from plain arrays (trimesh's tracked arrays cost a hook per slice).
+    normals = np.take(np.asarray(geometry.face_normals), face, axis=0)
+    corner = np.take(vertices, np.take(np.asarray(mesh.faces)[:, 0], face), axis=0)
+    along = trimesh.util.diagonal_dot(corner, normals)
+    direction = np.take(unit, ray, axis=0)
+    facing = trimesh.util.diagonal_dot(direction, normals)
     valid = np.abs(facing) > 1e-5
-    locations = unit[ray[valid]] * (along[valid] / facing[valid]).reshape((-1, 1))
-    distance = np.sqrt((locations**2).sum(axis=1))
-    return ray[valid], face[valid], distance
+    if not valid.all():  # a ray grazing its triangle's plane: trimesh drops it
+        ray, face, along, facing = ray[valid], face[valid], along[valid], facing[valid]
+        direction = direction[valid]
+    t = along / facing
+    squared = np.square(direction[:, 0] * t)
+    squared += np.square(direction[:, 1] * t)
+    squared += np.square(direction[:, 2] * t)
+    return ray, face, np.sqrt(squared)
+
+
+# Unit ray directions (trimesh.util.unitize, and as float32 for Embree) per read-only
+# ray array: every full sweep of a layout casts the same one (BeamLayout caches it).
+_UNIT_RAYS: dict[
+    int, tuple[weakref.ref[NDArray[np.float64]], NDArray[np.float64], NDArray[np.float32]]
+] = {}
+
+
+def _unit_rays(directions: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float32]]:
+    """``(unitised, as float32)``, cached for read-only arrays that own their memory."""
+    cacheable = not directions.flags.writeable and directions.base is None
+    if cacheable:
+        found = _UNIT_RAYS.get(id(directions))
+        if found is not None and found[0]() is directions:
+            return found[1], found[2]
+    unit = trimesh.util.unitize(directions)
+    unit32 = unit.astype(np.float32)
+    if cacheable:
+        key = id(directions)
+        _UNIT_RAYS[key] = (
+            weakref.ref(directions, lambda _: _UNIT_RAYS.pop(key, None)),
+            unit,
+            unit32,
+        )
+    return unit, unit32
 
 
 def _cast_numpy(

@@ -74,11 +74,10 @@ def render(
     measured = distance + noise[ray]
     keep = (measured >= beams.min_range) & (measured <= beams.max_range)
     ray, face, measured = ray[keep], face[keep], measured[keep]
-    directions = rays.directions[ray]
-    xyz = directions * measured[:, None]
+    directions = np.take(rays.directions, ray, axis=0)
     intensity = mesh.face_reflectivity[face] * _cos_incidence(mesh, face, directions)
     points = np.empty((len(ray), 4), dtype=np.float32)
-    points[:, :3] = xyz
+    points[:, :3] = directions * measured[:, None]
     points[:, 3] = np.clip(intensity, 0.0, 1.0)
     instance = mesh.face_instance[face]
     cloud = PointCloud(
@@ -103,4 +102,9 @@ def _cos_incidence(
     normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     length = np.linalg.norm(normal, axis=1)
     normal = normal / np.where(length > 0, length, 1.0)[:, None]
-    return np.abs((normal[face] * directions).sum(axis=1))
+    # Column by column, in the order of numpy's row sum (x + y + z): the same values.
+    per_hit = np.take(normal, face, axis=0)
+    cosine = per_hit[:, 0] * directions[:, 0]
+    cosine += per_hit[:, 1] * directions[:, 1]
+    cosine += per_hit[:, 2] * directions[:, 2]
+    return np.abs(cosine)
