@@ -197,10 +197,11 @@ class ReferencePerception:
         """Like calling the pipeline, but also report what each stage kept."""
         points, roi = sweep_and_roi(cloud, roi)
         sweep = self.prepare(points)
-        in_roi = sweep[self.roi_mask(sweep, roi)]
+        # np.compress: boolean row selection of an (n, 4) array is ~5x slower.
+        in_roi = np.compress(self.roi_mask(sweep, roi), sweep, axis=0)
         ground_z = self.ground_heights(in_roi, sweep, roi)
         keep = self.obstacle_mask(in_roi, ground_z, sweep)
-        obstacles, ground_z = in_roi[keep], ground_z[keep]
+        obstacles, ground_z = np.compress(keep, in_roi, axis=0), ground_z[keep]
         clusters = self.segment(obstacles, sweep)
         boxes = self.review_boxes(self.build_boxes(obstacles, ground_z, clusters), in_roi)
         return Stages(len(in_roi), len(obstacles), clusters.count, boxes)
@@ -328,7 +329,7 @@ def _member_points(
     """
     new_id = np.cumsum(keep) - 1
     member = keep[labels]
-    xyz, ids = points[member, :3], new_id[labels[member]]
+    xyz, ids = np.compress(member, points, axis=0)[:, :3], new_id[labels[member]]
     small = cells[labels[member]] < 4
     if small.any():
         few, few_ids = xyz[small], ids[small]
