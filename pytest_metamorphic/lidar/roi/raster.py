@@ -36,13 +36,19 @@ class _Grid:
         arithmetic); 0 where a point is off the grid (or not finite).
         """
         exists = self.exists(xy)
-        # Whole columns at once (no gathers): the cell of every point, then masked.
+        # Whole columns at once (no gathers): the cell of every point, then masked. In
+        # place: fresh temporaries of a whole sweep cost more than the arithmetic.
         with np.errstate(invalid="ignore"):
-            ix = np.floor((xy[:, 0] + self.extent) / self.cell_size)
-            iy = np.floor((xy[:, 1] + self.extent) / self.cell_size)
+            ix = np.add(xy[:, 0], self.extent)
+            ix /= self.cell_size
+            np.floor(ix, out=ix)
+            iy = np.add(xy[:, 1], self.extent)
+            iy /= self.cell_size
+            np.floor(iy, out=iy)
             ix *= self.size
             ix += iy  # integers below 2**53: exact in float64
-        return exists, np.where(exists, ix, 0.0).astype(np.intp)
+        np.copyto(ix, 0.0, where=~exists)
+        return exists, ix.astype(np.intp)
 
     def centres(self, index: NDArray[np.integer]) -> NDArray[np.float64]:
         return (np.asarray(index, dtype=np.float64) + 0.5) * self.cell_size - self.extent
