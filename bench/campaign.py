@@ -15,10 +15,15 @@ LocalCluster. ``unit_overhead`` = (workers x cluster time - one-process time) / 
 time: what the engine adds to the system's time (target <= 0.02), with the default guided
 batches; ``task_ms`` is the cost of one task of one source (``--mt-dask-batch 1``).
 
+Memory: the peak resident memory of the single-process run, and of two more single-process
+campaigns over 120k-point sweeps (``--memory-sources`` sources) with 1 and 8 follow-ups per
+source and size: a campaign keeps no follow-up once judged, so the peak must not grow with
+the number of follow-ups (``rss_growth`` = peak with 8 / peak with 1, target <= 1.05).
+
 Targets for S = 1000: under 300 s single-process, speedup >= 1.7 with ``-n 2`` and >= 1.8 on
 the 2-worker cluster. They need an otherwise idle machine with at least 2 cores.
 
-    python bench/campaign.py [--sources N] [--seed S] [--overhead-sources N]
+    python bench/campaign.py [--sources N] [--seed S] [--overhead-sources N] [--memory-sources N]
 """
 
 from __future__ import annotations
@@ -71,7 +76,13 @@ def reference_system(frame):
 
 
 test_bench = campaign_test(
-    mr1_campaign(reference_system, name="bench MR1 reference", sources={sources}, seed={seed}),
+    mr1_campaign(
+        reference_system,
+        name="bench MR1 reference",
+        sources={sources},
+        seed={seed},
+        followups={followups},
+    ),
     shards={shards},
 )
 """
@@ -84,6 +95,7 @@ class Run:
     mode: str
     wall_s: float
     report: dict[str, Any]
+    peak_rss_mb: float  # of the pytest process (its workers' not included)
 
 
 def fail(message: str) -> NoReturn:
@@ -91,17 +103,19 @@ def fail(message: str) -> NoReturn:
     sys.exit(1)
 
 
-def write_project(folder: Path, *, sources: int, seed: int) -> Path:
+def write_project(folder: Path, *, sources: int, seed: int, followups: int = 1) -> Path:
     """A user's project: the campaign test and a ``pytest.ini`` that keeps it self-contained.
 
     The ini file makes ``folder`` the rootdir, so the repository's pytest options (addopts,
     markers) do not leak into the measurement.
     """
+    folder.mkdir(parents=True, exist_ok=True)
     (folder / "pytest.ini").write_text("[pytest]\n", encoding="utf-8")
     module = folder / "test_bench_campaign.py"
-    module.write_text(
-        MODULE.format(root=str(ROOT), sources=sources, seed=seed, shards=SHARDS), encoding="utf-8"
+    text = MODULE.format(
+        root=str(ROOT), sources=sources, seed=seed, shards=SHARDS, followups=followups
     )
+    module.write_text(text, encoding="utf-8")
     return module
 
 
@@ -131,20 +145,23 @@ def run_pytest(module: Path, campaign_dir: Path, *, mode: str, extra: list[str])
         "-q",
         *extra,
     ]
+    output = campaign_dir.parent / f"{campaign_dir.name}.log"
     start = time.perf_counter()
-    completed = subprocess.run(
-        command,
-        cwd=module.parent,
-        env=subprocess_env(),
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    wall_s = time.perf_counter() - start
-    if completed.returncode != 0:
-        tail = (completed.stdout + completed.stderr).splitlines()[-OUTPUT_TAIL:]
-        fail(f"{mode} run exited {completed.returncode}: {' '.join(command)}\n" + "\n".join(tail))
-    return Run(mode, wall_s, read_report(campaign_dir, mode=mode))
+    with output.open("w+", encoding="utf-8") as log:
+        process = subprocess.Popen(
+            command, cwd=module.parent, env=subprocess_env(), stdout=log, stderr=log
+        )
+        # wait4, not wait: its resource usage gives the process's peak resident memory.
+        _, status, usage = os.wait4(process.pid, 0)
+        wall_s = time.perf_counter() - start
+        process.returncode = os.waitstatus_to_exitcode(status)
+        log.seek(0)
+        text = log.read()
+    if process.returncode != 0:
+        tail = text.splitlines()[-OUTPUT_TAIL:]
+        fail(f"{mode} run exited {process.returncode}: {' '.join(command)}\n" + "\n".join(tail))
+    peak_mb = usage.ru_maxrss / 1024  # KiB on Linux
+    return Run(mode, wall_s, read_report(campaign_dir, mode=mode), peak_mb)
 
 
 def read_report(campaign_dir: Path, *, mode: str) -> dict[str, Any]:
@@ -184,7 +201,7 @@ def print_table(runs: list[Run], *, sources: int) -> None:
     sizes = runs[0].report["header"]["sizes"]
     violation_columns = [f"viol n={n}" for n in sizes]
     print(
-        f"{'mode':<10}{'wall s':>10}{'sources/s':>11}{'SUT calls':>11}"
+        f"{'mode':<10}{'wall s':>10}{'sources/s':>11}{'SUT calls':>11}{'peak RSS MB':>13}"
         + "".join(f"{column:>13}" for column in violation_columns)
     )
     for run in runs:
@@ -192,10 +209,12 @@ def print_table(runs: list[Run], *, sources: int) -> None:
         violations = [f"{counts[str(n)]['violations']}/{counts[str(n)]['pairs']}" for n in sizes]
         print(
             f"{run.mode:<10}{run.wall_s:>10.1f}{sources / run.wall_s:>11.2f}"
-            f"{run.report['sut_calls']:>11}" + "".join(f"{v:>13}" for v in violations)
+            f"{run.report['sut_calls']:>11}{run.peak_rss_mb:>13.0f}"
+            + "".join(f"{v:>13}" for v in violations)
         )
 
 
+MEMORY_FOLLOWUPS = (1, 8)
 SLEEP_S = 0.010
 OVERHEAD_WORKERS = 2
 
@@ -293,9 +312,10 @@ def main() -> None:
     parser.add_argument("--sources", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--overhead-sources", type=int, default=300)
+    parser.add_argument("--memory-sources", type=int, default=40)
     args = parser.parse_args()
-    if args.sources < 1 or args.seed < 0 or args.overhead_sources < 1:
-        parser.error("--sources and --overhead-sources must be >= 1 and --seed >= 0")
+    if min(args.sources, args.overhead_sources, args.memory_sources) < 1 or args.seed < 0:
+        parser.error("--sources, --overhead-sources and --memory-sources must be >= 1, --seed >= 0")
 
     # The speedup is only meaningful on an idle machine: say what this one was doing.
     load = ", ".join(f"{value:.2f}" for value in os.getloadavg())
@@ -310,8 +330,24 @@ def main() -> None:
         single = run_pytest(module, folder / "single", mode="single", extra=[])
         parallel = run_pytest(module, folder / "n2", mode="-n 2", extra=["-n", "2"])
         dask = run_pytest(module, folder / "dask", mode="dask 2", extra=["--mt-dask", "local:2"])
+        memory = {
+            count: run_pytest(
+                write_project(
+                    folder / f"memory-{count}",
+                    sources=args.memory_sources,
+                    seed=args.seed,
+                    followups=count,
+                ),
+                folder / f"memory-{count}" / "campaigns",
+                mode=f"memory F={count}",
+                extra=[],
+            )
+            for count in MEMORY_FOLLOWUPS
+        }
     for run in (single, parallel, dask):
         check_complete(run, sources=args.sources)
+    for run in memory.values():
+        check_complete(run, sources=args.memory_sources)
     check_identical(single, parallel)
     check_identical(single, dask)
 
@@ -328,13 +364,24 @@ def main() -> None:
         f"workers: {speedup_dask:.2f}x (target >= 1.8); merged reports identical; "
         f"single-process target < 300 s for 1000 sources"
     )
+    low, high = (memory[count] for count in MEMORY_FOLLOWUPS)
+    growth = high.peak_rss_mb / low.peak_rss_mb
+    print(
+        f"\npeak RSS over {args.memory_sources} sources of ~120k points: "
+        f"{low.peak_rss_mb:.0f} MB with {MEMORY_FOLLOWUPS[0]} follow-up per source and size "
+        f"({low.report['sut_calls']} SUT calls), {high.peak_rss_mb:.0f} MB with "
+        f"{MEMORY_FOLLOWUPS[1]} ({high.report['sut_calls']} calls): x{growth:.3f} "
+        "(target <= 1.05: nothing accumulates per follow-up)"
+    )
     overhead = measure_overhead(args.overhead_sources)
     print_overhead(overhead)
     print(
         f"RESULT wall_s={single.wall_s:.1f} speedup_n2={speedup:.2f} "
         f"speedup_dask2={speedup_dask:.2f} unit_overhead={overhead.ratio:.4f} "
         f"task_ms={overhead.task_ms:.2f} cluster_start_s={overhead.start_s:.2f} "
-        f"sut_calls={single.report['sut_calls']}"
+        f"sut_calls={single.report['sut_calls']} peak_rss_mb={single.peak_rss_mb:.0f} "
+        f"rss_f1_mb={low.peak_rss_mb:.0f} rss_f8_mb={high.peak_rss_mb:.0f} "
+        f"rss_growth={growth:.3f}"
     )
 
 

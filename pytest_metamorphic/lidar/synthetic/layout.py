@@ -259,7 +259,10 @@ def _check_kinds(kinds: Sequence[RoadKind]) -> tuple[RoadKind, ...]:
 # --- Obstacles and clutter ---------------------------------------------------------------
 
 
-@functools.lru_cache(maxsize=16)
+# A few entries only: each keeps its ROI alive, and with it ~15 MB of bitmaps and cell
+# sets; a scene's layout needs one ROI (campaigns draw a new one per source, tests
+# usually share one).
+@functools.lru_cache(maxsize=2)
 def obstacle_slots(roi: ROI, max_distance: float) -> NDArray[np.float64]:
     """Lattice points where an obstacle may stand, nearest to (10, 0) first.
 
@@ -286,7 +289,7 @@ def obstacle_slots(roi: ROI, max_distance: float) -> NDArray[np.float64]:
     return np.ascontiguousarray(slots[order])
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=len(BACKGROUND_ORDER) + 1)  # one ROI's kinds (see above)
 def _background_sites(roi: ROI, kind: str) -> CellSet:
     """Free cells far enough from the ROI for the largest object of a kind."""
     (_, _, _), (length, width, _) = _BACKGROUND_SIZES[kind]
