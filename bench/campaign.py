@@ -20,8 +20,16 @@ campaigns over 120k-point sweeps (``--memory-sources`` sources) with 1 and 8 fol
 source and size: a campaign keeps no follow-up once judged, so the peak must not grow with
 the number of follow-ups (``rss_growth`` = peak with 8 / peak with 1, target <= 1.05).
 
-Targets for S = 1000: under 300 s single-process, speedup >= 1.7 with ``-n 2`` and >= 1.8 on
-the 2-worker cluster. They need an otherwise idle machine with at least 2 cores.
+Targets for S = 1000: at most 100 s single-process, speedup >= 1.7 with ``-n 2`` and >= 1.8
+on the 2-worker cluster. They need an otherwise idle machine with at least 2 cores.
+
+Where a source's ~75 ms go (cProfile of 30 sources, 2026-11-26): rendering the scene
+27 ms (Embree 9 ms, see bench/strategies.py), the reference pipeline 4 x ~7 ms, laying out
+the random scene and its ROI's bitmaps, free and interior cells ~15 ms (scan conversion,
+dilations by 1-51 cells), three noise follow-ups ~2 ms. Before: 122-148 s, with ~10 MB of
+cell corners built per ROI for sampling (now a ``CellSet`` of flat indices, corners only for
+the cells drawn), a whole-grid difference array and cumsum per polygon scan (now the
+filled runs' cells), and the render's numpy overhead.
 
     python bench/campaign.py [--sources N] [--seed S] [--overhead-sources N] [--memory-sources N]
 """
@@ -362,7 +370,7 @@ def main() -> None:
     print(
         f"speedup with -n 2: {speedup:.2f}x (target >= 1.7); on the Dask LocalCluster of 2 "
         f"workers: {speedup_dask:.2f}x (target >= 1.8); merged reports identical; "
-        f"single-process target < 300 s for 1000 sources"
+        f"single-process target <= 100 s for 1000 sources"
     )
     low, high = (memory[count] for count in MEMORY_FOLLOWUPS)
     growth = high.peak_rss_mb / low.peak_rss_mb

@@ -18,6 +18,15 @@ built once before timing (Apollo builds it per frame from the map; here the map 
 fixed). Timing: each frame is run ``--repeat`` times per pipeline, interleaved; the
 median over all runs is reported.
 
+Where the time goes (step timers and cProfile, idle 2-core machine, 2026-11-26; ~8 ms a
+sweep): MinBox 3.7 ms (65 clusters a sweep, ~55 us of Python each: the exact monotone-chain
+hull, Apollo's facing-edge walk and the box along each candidate edge, sequential rules
+with epsilon ties that do not vectorise across clusters without changing boxes; the
+vectorised octagon prune before the hull replaced qhull's 1.7 ms); the ROI raster lookup
+1-2 ms (half of it page faults of whole-sweep temporaries); ground heights 0.9 ms;
+clustering 0.5 ms; building and sorting the boxes and classes 1.2 ms. Boolean row
+selection of (n, 4) arrays was 5x slower than ``np.compress`` (now used).
+
     python bench/perception.py [--repeat N] [--roi wedge|disc]
 """
 
@@ -207,7 +216,7 @@ def main() -> None:
             print(f"  {line}")
     speedup = medians["baseline"] / medians["reference"]
     print(
-        f"\nreference median {medians['reference']:.1f} ms per frame (target <= 20 ms); "
+        f"\nreference median {medians['reference']:.1f} ms per frame (target <= 5 ms); "
         f"{speedup:.1f}x faster than the baseline"
     )
     print(
