@@ -222,10 +222,10 @@ def _artifact_writer(
 
 
 def _simulator(name: str) -> tuple[Simulator, str]:
-    if name == "highway-env":
+    if name in ("highway-env", "highway-env-lidar"):
         from pytest_metamorphic.driving.simulators.highway_env import HighwayEnvSimulator
 
-        simulator = HighwayEnvSimulator()
+        simulator = HighwayEnvSimulator(visibility="lidar" if name.endswith("lidar") else "sensor")
         return simulator, repr(simulator)
     return check_simulator(None), "built-in"
 
@@ -283,9 +283,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--simulator",
-        choices=("built-in", "highway-env"),
+        choices=("built-in", "highway-env", "highway-env-lidar"),
         default="built-in",
-        help="where the controllers drive (highway-env needs its extra)",
+        help="where the controllers drive (highway-env needs its extra; -lidar: what the "
+        "car sees is decided by highway-env's LidarObservation, not the sensor's occlusion "
+        "test)",
     )
     parser.add_argument(
         "--artifacts",

@@ -162,6 +162,19 @@ def test_parked_cars_hide_the_child_until_it_steps_out() -> None:
     assert start + 1.0 < hidden_until < scenario.time_to_collision_point
 
 
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_an_occluder_hides_whichever_way_its_corners_run(clockwise: bool) -> None:
+    # highway-env lists a body's corners clockwise; the sensor used to treat every box as
+    # counter-clockwise, so in the highway-env adapter no parked car hid the child
+    car = [(34.23, -3.71), (38.54, -3.71), (38.54, -1.93), (34.23, -1.93)]
+    occluder = tuple(reversed(car)) if clockwise else tuple(car)
+    child = ((39.54, -4.36), (39.84, -4.36), (39.84, -3.64), (39.54, -3.64))
+    assert not Sensor().sees((6.2, 0.0), 0.0, child, [occluder])  # type: ignore[arg-type]
+    assert Sensor().sees((6.2, 0.0), 0.0, child, [])  # type: ignore[arg-type]
+    # far enough back, the child's outer corners show past the car's outer side
+    assert Sensor().sees((-60.0, 0.0), 0.0, child, [occluder])  # type: ignore[arg-type]
+
+
 def test_face_classification() -> None:
     ego = _corners(0, 0, 0.3, 4.0, 2.0)
     c, s = math.cos(0.3), math.sin(0.3)

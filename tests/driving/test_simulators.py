@@ -61,6 +61,41 @@ def test_the_reference_aeb_stops_in_highway_env_as_in_ours(kind: str) -> None:
     assert [stage for _, stage in theirs.stages] == [stage for _, stage in ours.stages]
 
 
+def _first_seen(simulator, scenario) -> float:  # type: ignore[no-untyped-def]
+    seen: list[float] = []
+
+    def probe(observation):  # type: ignore[no-untyped-def]
+        if any(track.kind == "pedestrian" for track in observation.tracks):
+            seen.append(observation.time)
+        return 0.0
+
+    run_simulator(simulator, scenario, probe)
+    return seen[0]
+
+
+@pytest.mark.parametrize("speed", [20, 40])
+def test_highway_envs_lidar_hides_the_child_behind_the_parked_cars_as_our_sensor_does(
+    speed: int,
+) -> None:
+    # highway-env's own LidarObservation decides visibility here: it agrees with our
+    # line-of-sight sensor (built-in and in highway-env) to within two 10 ms steps
+    scenario = euro_ncap("CPNCO-50", ego_speed_kmh=speed)
+    built_in = _first_seen(check_simulator(None), scenario)
+    ours = _first_seen(HighwayEnvSimulator(), scenario)
+    lidar = _first_seen(HighwayEnvSimulator(visibility="lidar"), scenario)
+    assert scenario.pedestrian_start_time + 1.0 < built_in < scenario.time_to_collision_point
+    assert ours == pytest.approx(built_in, abs=0.021)
+    assert lidar == pytest.approx(built_in, abs=0.021)
+
+
+def test_highway_env_lidar_settings_are_checked() -> None:
+    with pytest.raises(InvalidArgument, match="visibility"):
+        HighwayEnvSimulator(visibility="radar")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="lidar_cells"):
+        HighwayEnvSimulator(visibility="lidar", lidar_cells=2)
+    assert "lidar_cells=1440" in repr(HighwayEnvSimulator(visibility="lidar"))
+
+
 def test_highway_env_steers_along_a_real_street(shared_data: Path) -> None:
     """On 8th Street (12 vertices) highway-env's own lane keeping drives the car; the
     unbraked car still meets the dummy where ours does."""

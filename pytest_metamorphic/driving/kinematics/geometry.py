@@ -46,9 +46,13 @@ def _segment_hits_box(p: Point, q: Point, box: Box) -> bool:
         return False
     t0, t1 = 0.0, 1.0
     dx, dy = q[0] - p[0], q[1] - p[1]
+    # Either winding: highway-env's polygons run clockwise, ours counter-clockwise (with
+    # a clockwise box the normals below pointed inwards and nothing was ever hidden).
+    (ax, ay), (bx, by), (cx2, cy2) = box[0], box[1], box[2]
+    turn = 1.0 if (bx - ax) * (cy2 - by) - (by - ay) * (cx2 - bx) >= 0 else -1.0
     for i in range(4):
         (cx, cy), (ex, ey) = box[i], box[(i + 1) % 4]
-        nx, ny = ey - cy, -(ex - cx)  # outward normal of a counter-clockwise edge
+        nx, ny = turn * (ey - cy), -turn * (ex - cx)  # the edge's outward normal
         denom = nx * dx + ny * dy
         num = nx * (cx - p[0]) + ny * (cy - p[1])
         if abs(denom) < 1e-12:

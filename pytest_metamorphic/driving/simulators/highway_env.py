@@ -8,7 +8,12 @@ contacts with its polygon intersection test. What highway-env has no model for i
 scripted as in any OpenSCENARIO player: the Euro NCAP dummy walks the protocol's path
 (uniform acceleration, then constant speed) and the parked cars are ``Obstacle`` objects.
 The AEB sees ground-truth tracks of the actors (highway-env's positions), limited by the
-same :class:`~pytest_metamorphic.driving.kinematics.Sensor` as in the built-in simulator.
+same :class:`~pytest_metamorphic.driving.kinematics.Sensor` as in the built-in simulator,
+or, with ``visibility="lidar"``, by highway-env's own ``LidarObservation``: an actor is
+seen when it is the nearest return in at least one of the lidar's sectors within the
+sensor's range and field of view (rays from the front bumper). With the ideal car (no
+brake delay, no latency) the AEB's command then acts at once, as highway-env's vehicles
+do, and only the dummy's scripted walk and the collision face labels are ours.
 
 Differences from the built-in simulator, all highway-env's: Euler steps (the built-in
 one integrates exactly and finds the contact time by bisection), a car body turned by a
@@ -21,9 +26,11 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable
-from typing import Any
+from types import SimpleNamespace
+from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.driving.kinematics import (
@@ -68,6 +75,13 @@ class HighwayEnvSimulator:
         Step in seconds (the AEB's rate and highway-env's integration step), at most 0.1.
     sensor : Sensor, optional
         Default ``Sensor()``: 100 m, 180 degrees, with occlusion.
+    visibility : {"sensor", "lidar"}
+        ``"sensor"``: the sensor's line-of-sight test, as in the built-in simulator.
+        ``"lidar"``: highway-env's ``LidarObservation`` decides what is hidden (range and
+        field of view still from ``sensor``).
+    lidar_cells : int
+        The lidar's angular sectors over 360 degrees (1440: 0.25 degrees, so a child
+        0.5 m wide is hit by a ray up to ~100 m away).
 
     Examples
     --------
@@ -75,12 +89,25 @@ class HighwayEnvSimulator:
     >>> result = simulator(euro_ncap("CPNA-25"), reference_controller())  # doctest: +SKIP
     """
 
-    def __init__(self, *, dt: float = 0.01, sensor: Sensor | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        dt: float = 0.01,
+        sensor: Sensor | None = None,
+        visibility: Literal["sensor", "lidar"] = "sensor",
+        lidar_cells: int = 1440,
+    ) -> None:
         self.dt, self.sensor = loop_settings(dt, sensor)
+        if visibility not in ("sensor", "lidar"):
+            raise InvalidArgument(f"visibility={visibility!r} must be 'sensor' or 'lidar'")
+        if isinstance(lidar_cells, bool) or not isinstance(lidar_cells, int) or lidar_cells < 4:
+            raise InvalidArgument(f"lidar_cells={lidar_cells!r} must be an int >= 4")
+        self.visibility, self.lidar_cells = visibility, lidar_cells
         self.modules = _highway_env()
 
     def __repr__(self) -> str:
-        return f"HighwayEnvSimulator(dt={self.dt:g})"
+        lidar = f", visibility='lidar', lidar_cells={self.lidar_cells}"
+        return f"HighwayEnvSimulator(dt={self.dt:g}{lidar if self.visibility == 'lidar' else ''})"
 
     def __call__(
         self,
@@ -128,6 +155,11 @@ class _Run:
             _resize(obstacle, parked.footprint.length, parked.footprint.width)
             self.parked.append((obstacle, parked))
         self.road.objects = [obstacle for obstacle, _ in self.parked]
+        self.lidar = (
+            _Lidar(self.road, self.car, simulator.sensor, simulator.lidar_cells)
+            if simulator.visibility == "lidar"
+            else None
+        )
         lane_right, lane_left = road.lane_bounds(scenario.ego_lane)
         offset = scenario.ego_offset
         self.lane = (lane_right - offset, lane_left - offset)
@@ -171,12 +203,17 @@ class _Run:
                    for obstacle, p in self.parked]  # fmt: skip
         boxes = [_box(actor) for actor, *_ in actors]
         vs, vd = self.dummy.road_velocity(t)
+        if self.lidar is not None:
+            self.lidar.scan(bumper, heading, [actor for actor, *_ in actors])
         tracks = []
         for index, (actor, kind, along, across) in enumerate(actors):
-            box = boxes[index]
-            occluders = [other for j, other in enumerate(boxes) if j != index]
-            if not self.sensor.sees(bumper, heading, box, occluders):
-                continue
+            if self.lidar is not None:
+                if not self.lidar.sees(actor):
+                    continue
+            else:
+                occluders = [other for j, other in enumerate(boxes) if j != index]
+                if not self.sensor.sees(bumper, heading, boxes[index], occluders):
+                    continue
             s, d = road.to_frenet(np.asarray(actor.position))
             velocity = (vs, vd) if index == 0 else (0.0, 0.0)
             tracks.append(
@@ -262,6 +299,52 @@ class _Dummy:
     def road_velocity(self, t: float) -> tuple[float, float]:
         speed = float(self.motion.velocity(t))
         return speed * self.motion.ds, speed * self.motion.dd
+
+
+class _Lidar:
+    """Visibility by highway-env's ``LidarObservation`` (its ray-rectangle distances).
+
+    Each actor is traced alone; its trace's grid is what the whole road's trace writes
+    for it (``trace`` keeps, per sector, the nearest return of any obstacle), so the
+    scene's nearest returns are the minimum over the actors, at half the cost of tracing
+    the road as well. An actor is seen when, in some sector whose direction lies in the
+    sensor's field of view, it is within range and no other actor's return is nearer.
+    """
+
+    def __init__(self, road: Any, observer: Any, sensor: Sensor, cells: int) -> None:
+        from highway_env.envs.common.observation import LidarObservation
+
+        self.observer, self.range = observer, float(sensor.range)
+        self.half_fov = math.radians(sensor.field_of_view) / 2
+        # LidarObservation reads env.road (vehicles and objects) and env.vehicle (the
+        # observer) only: a road holding one actor at a time.
+        self.alone = SimpleNamespace(vehicles=[], objects=[])
+        self.lidar = LidarObservation(
+            SimpleNamespace(road=self.alone, vehicle=observer),
+            cells=cells,
+            maximum_range=self.range,
+            normalize=False,
+        )
+        self.directions = np.arange(cells) * (2 * math.pi / cells)  # each sector's centre
+        self.returns: dict[int, NDArray[np.float32]] = {}
+        self.nearest = np.full(cells, self.range, dtype=np.float32)
+        self.ahead = np.zeros(cells, dtype=bool)
+
+    def scan(self, origin: tuple[float, float], heading: float, actors: list[Any]) -> None:
+        """Trace every actor from ``origin`` (the front bumper) looking along ``heading``."""
+        position = np.asarray(origin, dtype=np.float64)
+        self.returns = {}
+        for actor in actors:
+            self.alone.vehicles = [actor]
+            grid = self.lidar.trace(position, self.observer.velocity)
+            self.returns[id(actor)] = grid[:, 0].copy()
+        self.nearest = np.min(list(self.returns.values()), axis=0)
+        bearing = (self.directions - heading + math.pi) % (2 * math.pi) - math.pi
+        self.ahead = np.abs(bearing) <= self.half_fov + 1e-9
+
+    def sees(self, actor: Any) -> bool:
+        own = self.returns[id(actor)]
+        return bool(np.any(self.ahead & (own < self.range) & (own <= self.nearest)))
 
 
 def _resize(actor: Any, length: float, width: float) -> None:
