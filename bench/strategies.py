@@ -181,7 +181,11 @@ def main() -> None:
         ),
         ("raster == exact on these points", f"{100 * raster_agree:8.3f} %", ""),
         ("bitmap scan conversion (once per ROI)", f"{build_ms[0]:8.2f} ms", ""),
-        ("MR1 noise n=1000: seeds -> points -> frame", f"{noise_ms[0]:8.2f} ms", "target <= 0.3 ms"),
+        (
+            "MR1 noise n=1000: seeds -> points -> frame",
+            f"{noise_ms[0]:8.2f} ms",
+            "target <= 0.3 ms",
+        ),
         ("  same through Hypothesis (draw + inject)", f"{hypothesis_ms[0]:8.2f} ms", "info"),
         (f"render ~120k-point scene ({engine})", f"{render_ms[0]:8.2f} ms", "target <= 30 ms"),
         ("render same scene (numpy fallback)", f"{numpy_ms[0]:8.2f} ms", f"{len(frame.cloud)} pts"),
