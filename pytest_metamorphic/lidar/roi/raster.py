@@ -74,14 +74,22 @@ class CellSet:
         # Lower cell edges per axis index, as ROI.cell_origin computes them.
         index = np.arange(grid.size, dtype=np.float64)
         self._lower = index * grid.cell_size - grid.extent
+        self._all: NDArray[np.float64] | None = None
 
     def __len__(self) -> int:
         return len(self.flat)
 
     def origins(self, pick: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """(m, 2) float64: lower-left corners of cells ``pick`` (positions in this set),
-        or of all cells."""
-        flat = self.flat if pick is None else self.flat[pick]
+        or of all cells (then cached and read-only)."""
+        if pick is None:
+            if self._all is None:
+                self._all = self._corners(self.flat)
+                self._all.setflags(write=False)
+            return self._all
+        return self._corners(self.flat[pick])
+
+    def _corners(self, flat: NDArray[np.intp]) -> NDArray[np.float64]:
         ix, iy = np.divmod(flat, self._grid.size)
         out = np.empty((len(flat), 2))
         out[:, 0] = self._lower[ix]

@@ -548,16 +548,7 @@ class ROI:
         (k, 2) float64
           In row-major cell order; cached per arguments, read-only.
         """
-        if which not in ("free", "interior"):
-            raise InvalidArgument(f"which={which!r} must be 'free' or 'interior'")
-        limit = None if max_range is None else _positive_float(max_range, "max_range")
-        key = ("origins", which, margin_cells, limit)
-        origins = self._cache.get(key)
-        if origins is None:
-            origins = self.cells(which, margin_cells=margin_cells, max_range=limit).origins()
-            origins.setflags(write=False)
-            self._cache[key] = origins
-        return origins
+        return self.cells(which, margin_cells=margin_cells, max_range=max_range).origins()
 
     # -- value semantics -------------------------------------------------------------------
 
