@@ -80,8 +80,9 @@ class HighwayEnvSimulator:
         ``"lidar"``: highway-env's ``LidarObservation`` decides what is hidden (range and
         field of view still from ``sensor``).
     lidar_cells : int
-        The lidar's angular sectors over 360 degrees (1440: 0.25 degrees, so a child
-        0.5 m wide is hit by a ray up to ~100 m away).
+        The lidar's angular sectors over 360 degrees (1440: 0.25 degrees; a crossing
+        child, 0.7 m wide as the car sees it, spans more than one sector anywhere within
+        the sensor's 100 m, so some sector's ray meets it).
 
     Examples
     --------

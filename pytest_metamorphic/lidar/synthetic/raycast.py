@@ -150,6 +150,8 @@ def _unit_rays(directions: NDArray[np.float64]) -> tuple[NDArray[np.float64], ND
     unit = trimesh.util.unitize(directions)
     unit32 = unit.astype(np.float32)
     if cacheable:
+        unit.setflags(write=False)  # shared by every later render of the sweep
+        unit32.setflags(write=False)
         key = id(directions)
         _UNIT_RAYS[key] = (
             weakref.ref(directions, lambda _: _UNIT_RAYS.pop(key, None)),
