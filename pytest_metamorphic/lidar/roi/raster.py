@@ -9,8 +9,10 @@
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter
+
+from pytest_metamorphic.core.errors import InvalidArgument
 
 
 class _Grid:
@@ -79,7 +81,7 @@ class CellSet:
     def __len__(self) -> int:
         return len(self.flat)
 
-    def origins(self, pick: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+    def origins(self, pick: ArrayLike | None = None) -> NDArray[np.float64]:
         """(m, 2) float64: lower-left corners of cells ``pick`` (positions in this set),
         or of all cells (then cached and read-only)."""
         if pick is None:
@@ -87,7 +89,7 @@ class CellSet:
                 self._all = self._corners(self.flat)
                 self._all.setflags(write=False)
             return self._all
-        return self._corners(self.flat[pick])
+        return self._corners(self.flat[self._positions(pick)])
 
     def _corners(self, flat: NDArray[np.intp]) -> NDArray[np.float64]:
         ix, iy = np.divmod(flat, self._grid.size)
@@ -98,7 +100,25 @@ class CellSet:
 
     def subset(self, keep: NDArray[np.bool_]) -> CellSet:
         """The cells where ``keep`` (one bool per cell of this set) is true."""
-        return CellSet(self.flat[keep], self._grid)
+        mask = np.asarray(keep)
+        if mask.dtype != np.bool_ or mask.shape != self.flat.shape:
+            raise InvalidArgument(
+                f"keep must be ({len(self)},) bool, one per cell; got {mask.dtype} {mask.shape}"
+            )
+        return CellSet(self.flat[mask], self._grid)
+
+    def _positions(self, pick: ArrayLike) -> NDArray[np.intp]:
+        index = np.asarray(pick)
+        if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
+            raise InvalidArgument(
+                f"pick must be a 1-D array of ints, got {index.dtype} {index.shape}"
+            )
+        if len(index) and (index.min() < 0 or index.max() >= len(self)):
+            raise InvalidArgument(
+                f"pick holds positions {int(index.min())}..{int(index.max())}; this set has "
+                f"{len(self)} cells"
+            )
+        return index
 
 
 def _scan_intervals(

@@ -328,6 +328,12 @@ def test_cell_sets_name_the_same_cells_as_the_masks(which: str, max_range: float
     assert np.array_equal(cells.subset(keep).origins(), corners[keep])
     with pytest.raises(ValueError):
         cells.flat[0] = 0  # shared by every caller: read-only
+    with pytest.raises(InvalidArgument, match="pick holds positions"):
+        cells.origins(np.array([len(cells)]))
+    with pytest.raises(InvalidArgument, match="pick must be a 1-D array of ints"):
+        cells.origins(np.array([0.5]))
+    with pytest.raises(InvalidArgument, match="keep must be"):
+        cells.subset(keep[:-1])
 
 
 def test_roads_are_buffered_centrelines():
