@@ -52,6 +52,10 @@ class _Grid:
         np.copyto(ix, 0.0, where=~exists)
         return exists, ix.astype(np.intp)
 
+    def lower_edges(self, index: ArrayLike) -> NDArray[np.float64]:
+        """Lower edges (metres) of the cells with these indices along either axis."""
+        return np.asarray(index, dtype=np.float64) * self.cell_size - self.extent
+
     def centres(self, index: NDArray[np.integer]) -> NDArray[np.float64]:
         return (np.asarray(index, dtype=np.float64) + 0.5) * self.cell_size - self.extent
 
@@ -73,9 +77,7 @@ class CellSet:
         flat.setflags(write=False)
         self.flat = flat
         self._grid = grid
-        # Lower cell edges per axis index, as ROI.cell_origin computes them.
-        index = np.arange(grid.size, dtype=np.float64)
-        self._lower = index * grid.cell_size - grid.extent
+        self._lower = grid.lower_edges(np.arange(grid.size))  # per axis index
         self._all: NDArray[np.float64] | None = None
 
     def __len__(self) -> int:

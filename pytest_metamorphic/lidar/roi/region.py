@@ -341,9 +341,7 @@ class ROI:
 
     def cell_origin(self, ix: ArrayLike, iy: ArrayLike) -> NDArray[np.float64]:
         """(n, 2) float64: lower-left corners of cells ``(ix, iy)``."""
-        grid = self._grid
-        corner = np.stack([np.asarray(ix), np.asarray(iy)], axis=-1).astype(np.float64)
-        return corner * grid.cell_size - grid.extent
+        return self._grid.lower_edges(np.stack([np.asarray(ix), np.asarray(iy)], axis=-1))
 
     @property
     def major_axis(self) -> Literal["x", "y"]:
@@ -527,8 +525,7 @@ class ROI:
             if limit is not None:
                 # Closest point of each cell to the origin, per axis: the range test is
                 # one (size, size) comparison instead of one per cell.
-                index = np.arange(self.grid_size)
-                lower = self.cell_origin(index, index)[:, 0]
+                lower = self._grid.lower_edges(np.arange(self.grid_size))
                 squared = np.clip(0.0, lower, lower + self.cell_size) ** 2
                 cells = cells & (squared[:, None] + squared[None, :] <= limit**2)
             found = self._cache[key] = CellSet(np.flatnonzero(cells), self._grid)
