@@ -31,6 +31,7 @@ import contextlib
 import logging
 import time
 import uuid
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -48,6 +49,7 @@ __all__ = [
 
 LOCAL_PREFIX = "local:"
 WORKERS_TIMEOUT = 30.0
+RESTART_TIMEOUT = 20.0  # a restarted worker registers in 1-3 s on a loaded 2-core machine
 LARGE_PART_BYTES = 16 * 2**20
 MAX_AUTO_BATCH = 8
 GUIDED_SHARE = 4  # a guided task takes at most 1/(4 x workers) of what is left
@@ -141,8 +143,12 @@ def connect(cluster: Any, *, timeout: float | None = None) -> Iterator[Any]:
                 dashboard_address=":0",  # a free port: never clash with a running cluster
                 silence_logs=logging.ERROR,
             )
-        with local, distributed.Client(local) as client:
-            yield client
+        try:
+            with distributed.Client(local) as client:
+                yield client
+                _wait_for_restarts(client, workers)
+        finally:
+            _close_local(local)
         return
     if timeout is None:
         import dask
@@ -158,6 +164,37 @@ def connect(cluster: Any, *, timeout: float | None = None) -> Iterator[Any]:
         ) from None
     with client:
         yield client
+
+
+def _wait_for_restarts(client: Any, workers: int) -> None:
+    """Let nannies finish restarting workers that died before the cluster is closed.
+
+    Closing a nanny while it restarts a worker that a crashing system killed races inside
+    Dask (``AssertionError: can only join a started process``, seen in CI); waiting until
+    every worker is back closes that window. A worker that does not come back in time is
+    left to the close.
+    """
+    with contextlib.suppress(TimeoutError, OSError):
+        client.wait_for_workers(workers, timeout=RESTART_TIMEOUT)
+
+
+def _close_local(local: Any) -> None:
+    """Close a local cluster this module started; a failure to close is a warning.
+
+    By then the campaign's results are returned and its log written: Dask failing to shut
+    down its own worker processes (they are daemons and die with this process) must not
+    turn a finished campaign into an error, nor hide the error a failed one raised.
+    """
+    try:
+        local.close()
+    except Exception as error:  # whatever Dask raises while shutting down its processes
+        warnings.warn(
+            f"the local Dask cluster did not shut down cleanly ({type(error).__name__}: "
+            f"{error}); the campaign's results and log are complete, and its worker "
+            "processes end with this process",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def _seconds(value: Any) -> float:

@@ -13,6 +13,7 @@ import pickle
 import signal
 import sys
 import time
+import warnings
 from collections import Counter
 from pathlib import Path
 
@@ -253,6 +254,44 @@ def test_a_source_that_kills_its_worker_is_a_crash_and_the_campaign_goes_on(
     expected = run_campaign(others)
     for size in (1, 4):  # every other source counted exactly as without the poison
         assert result.sizes[size].pairs == expected.sizes[size].pairs - 2
+
+
+def test_a_worker_killed_at_the_end_is_back_before_the_cluster_closes() -> None:
+    distributed = pytest.importorskip("distributed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no unclean shutdown
+        with connect("local:2") as client:
+            doomed = client.submit(os._exit, 7, pure=False)
+            with pytest.raises(distributed.KilledWorker):
+                doomed.result(timeout=60)
+            # connect() waits for the nanny's restart: closing a restarting nanny races in
+            # Dask ("can only join a started process", seen in CI).
+
+
+def test_a_cluster_that_fails_to_close_warns_and_keeps_the_result(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    distributed = pytest.importorskip("distributed")
+    close = distributed.LocalCluster.close
+
+    def close_then_fail(self, *args, **kwargs):
+        close(self, *args, **kwargs)
+        raise AssertionError("can only join a started process")
+
+    monkeypatch.setattr(distributed.LocalCluster, "close", close_then_fail)
+    with (
+        pytest.warns(RuntimeWarning, match=r"did not shut down cleanly \(AssertionError: can"),
+        connect("local:1") as client,
+    ):
+        result = run_campaign(toy(sources=4), cluster=client, log=tmp_path / "log.jsonl")
+    assert result.complete and len(result.sources_done) == 4
+    # A campaign's own error is what the caller sees, not the shutdown's.
+    with (
+        pytest.raises(ValueError, match="the campaign's own error"),
+        pytest.warns(RuntimeWarning, match="did not shut down cleanly"),
+        connect("local:1"),
+    ):
+        raise ValueError("the campaign's own error")
 
 
 class _CtrlC(KeyboardInterrupt):
