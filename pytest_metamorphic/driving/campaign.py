@@ -188,6 +188,13 @@ class CampaignRow:
         return min((c.speed_kmh for c in self.avoidable_violations), default=None)
 
     @property
+    def least_avoidable_gap(self) -> float | None:
+        """Of the avoidable violations, the least distance (m) by which full braking from
+        the moment the pedestrian became a hazard stops short of it: how early the road
+        let the controller see what it had to brake for (None: no avoidable violation)."""
+        return min((c.avoidability.gap for c in self.avoidable_violations), default=None)
+
+    @property
     def violation_rate(self) -> float:
         return len(self.violations) / self.followups if self.followups else 0.0
 
@@ -433,8 +440,9 @@ def format_campaign(
     Columns: source, controller, source outcome, follow-ups, collisions (front/side),
     violations (follow-up collisions after an avoided source), of which physically
     avoidable (the judge's standard), avoidable by the lane standard ("in lane") and by
-    the paper's re-timed run ("re-timed"), the lowest violating speed and the two rates.
-    ``sources``, when given, adds each source's cross-section.
+    the paper's re-timed run ("re-timed"), the least stopping gap of the avoidable
+    violations ("min. gap m", :attr:`CampaignRow.least_avoidable_gap`), the lowest
+    violating speed and the two rates. ``sources``, when given, adds each source's cross-section.
     """
     header = (
         "source",
@@ -447,13 +455,14 @@ def format_campaign(
         "avoidable",
         "in lane",
         "re-timed",
+        "min. gap m",
         "lowest viol. km/h",
         "viol. rate",
         "avoidable rate",
     )
     table = [header]
     for row in rows:
-        lowest = row.lowest_violating_speed_kmh
+        lowest, gap = row.lowest_violating_speed_kmh, row.least_avoidable_gap
         table.append(
             (
                 row.source,
@@ -466,6 +475,7 @@ def format_campaign(
                 str(len(row.avoidable_violations)),
                 str(len(row.lane_avoidable_violations)),
                 str(len(row.retimed_avoidable_violations)),
+                "-" if gap is None else f"{gap:.1f}",
                 "-" if lowest is None else f"{lowest:g}",
                 f"{row.violation_rate:.1%}",
                 f"{row.avoidable_rate:.1%}",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import MappingProxyType
 
 import pytest
 
@@ -120,9 +121,39 @@ def test_default_campaign_is_the_papers_table(shared_data: Path) -> None:
     # lane too late); on the test road the lane is the whole road.
     assert len(test_road.lane_avoidable_violations) == 3
     assert eighth.lane_avoidable_violations == seventh.lane_avoidable_violations == ()
+    # How early each road shows the child (parked cars 1.0 / 2.2 / 4.1 m beside the car's
+    # body, on 7th Street the child first crosses a live lane) is the margin full braking
+    # had: a few decimetres, 4.5 m, 13.8 m (at 25 / 26 / 26 km/h).
+    gaps = [row.least_avoidable_gap for row in (test_road, eighth, seventh)]
+    assert gaps == pytest.approx([0.27, 4.49, 13.79], abs=0.01)
+    correct = [r for r in rows if r.controller != "3.6 m lane mutant"]
+    assert [r.least_avoidable_gap for r in correct] == [None] * 6
     text = format_campaign(rows, sources=sources)
+    assert "min. gap m" in text and " 13.8 " in text
     assert "right side at" in text and "(avoidable, violation)" in text
     assert "kerb 5.00 m beyond the car's path, child starts 5.50 m from it" in text
+
+
+def test_parked_cars_next_to_the_lane_make_violations_that_no_controller_avoids(
+    shared_data: Path,
+) -> None:
+    """Why no residential street without a cycle lane is a default source (docs/aeb.md):
+    parked cars 0.7 m from the car hide the child until it is inside the mutant's 1.8 m
+    corridor, so the counts change, but the correct controllers collide too, and the
+    judge calls exactly those collisions unavoidable."""
+    campbell = Street(
+        "osm_osmnx/West-Oakland.osm.bz2", "Campbell Street", "West Oakland, CA",
+        assumed_tags=MappingProxyType({"parking:both": "lane"}),
+    )  # fmt: skip
+    (_, source) = default_sources(shared_data, streets=[campbell])
+    assert "parked cars 0.70 m beside the car's body" in source.note
+    rows = iqbal_campaign([source], speeds_kmh=range(15, 32), retimed=False)
+    reference, mutant, ttc = rows
+    assert [c.speed_kmh for c in reference.violations] == [25.0, 26.0, 27.0]
+    assert reference.avoidable_violations == ttc.avoidable_violations == ()
+    assert [c.speed_kmh for c in ttc.violations] == [25.0, 26.0, 27.0]
+    assert [c.speed_kmh for c in mutant.avoidable_violations] == [23.0, 24.0]
+    assert len(mutant.violations) == 4
 
 
 def test_campaign_catches_the_mutant_and_clears_the_reference(shared_data: Path) -> None:
