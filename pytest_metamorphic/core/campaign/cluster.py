@@ -121,7 +121,10 @@ def connect(cluster: Any, *, timeout: float | None = None) -> Iterator[Any]:
     """A ``distributed.Client`` for ``cluster``: an address, ``"local:N"`` or a client.
 
     A local cluster (N single-threaded worker processes, each restarted by its nanny if
-    it dies) and the connection are closed on exit; a client given is left open.
+    it dies) and the connection are closed on exit, after workers that died are back
+    (up to ``RESTART_TIMEOUT`` s); a local cluster that then fails to shut down is a
+    ``RuntimeWarning``, never an error that hides the campaign's result or its own
+    exception. A client given is left open.
     ``timeout`` defaults to Dask's ``distributed.comm.timeouts.connect`` (30 s unless
     configured, e.g. ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=5``).
     """
