@@ -19,10 +19,11 @@ fixed). Timing: each frame is run ``--repeat`` times per pipeline, interleaved; 
 median over all runs is reported.
 
 Where the time goes (step timers and cProfile, idle 2-core machine, 2026-11-26; ~8 ms a
-sweep): MinBox 3.7 ms (65 clusters a sweep, ~55 us of Python each: the exact monotone-chain
+sweep): MinBox 3.7 ms (65 clusters a sweep, ~40 us of Python each: the exact monotone-chain
 hull, Apollo's facing-edge walk and the box along each candidate edge, sequential rules
 with epsilon ties that do not vectorise across clusters without changing boxes; the
-vectorised octagon prune before the hull replaced qhull's 1.7 ms); the ROI raster lookup
+vectorised octagon prune before the hull replaced qhull's 1.7 ms, and on 2026-11-27 it
+went from 0.9 to 0.34 ms column by column: 7.1-7.6 ms a sweep); the ROI raster lookup
 1-2 ms (half of it page faults of whole-sweep temporaries); ground heights 0.9 ms;
 clustering 0.5 ms; building and sorting the boxes and classes 1.2 ms. Boolean row
 selection of (n, 4) arrays was 5x slower than ``np.compress`` (now used).
