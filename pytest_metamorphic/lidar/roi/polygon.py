@@ -147,11 +147,13 @@ def _on_segment(ax: Any, ay: Any, bx: Any, by: Any, px: Any, py: Any) -> NDArray
 
 
 def _as_xy(
-    xy: ArrayLike, name: str = "xy", *, order: Literal["C", "F"] = "C"
+    xy: ArrayLike, name: str = "xy", *, order: Literal["C", "F"] = "C", convert: bool = True
 ) -> NDArray[np.float64]:
     """Normalise query points: (n, >=2) array_like or PointCloud -> (n, 2) float64.
 
     ``order="F"`` keeps each coordinate contiguous (for column-wise work on big clouds).
+    ``convert=False``: only checked, returned as the (n, >=2) numeric array it is (for
+    callers that convert block by block).
     """
     points = getattr(xy, "points", xy)
     try:
@@ -164,6 +166,8 @@ def _as_xy(
         raise InvalidArgument(f"{name} must have shape (n, 2) or (n, >=2), got {array.shape}")
     if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
         raise InvalidArgument(f"{name} must be numeric, got dtype {array.dtype}")
+    if not convert:
+        return array
     return np.asarray(array[:, :2], dtype=np.float64, order=order)
 
 

@@ -285,26 +285,21 @@ class ROI:
         -------
         (n,) bool
         """
-        points = _as_xy(xy, order="F")  # column-wise below
+        # Converted to float64 block by block in the lookup (NaN compares False: outside).
+        points = _as_xy(xy, convert=False)
         if method == "raster":
-            return self._contains_raster(points)
+            return self._grid.lookup(points, self._flat_bitmap)[1][0]
         if method == "exact":
             return self._contains_exact(points)
         raise InvalidArgument(f"method={method!r} must be 'raster' or 'exact'")
 
-    def _contains_raster(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
-        # NaN compares False in exists, so non-finite points are simply outside.
-        exists, cell = self._grid.cells(xy)
-        return self._flat_bitmap[cell] & exists
-
-    def _contains_exact(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
+    def _contains_exact(self, xy: NDArray[Any]) -> NDArray[np.bool_]:
         touched, centre_inside = self._exact_grids
-        exists, cell = self._grid.cells(xy)
+        exists, (result, crossed) = self._grid.lookup(xy, centre_inside.ravel(), touched.ravel())
         # A cell no edge touches lies wholly inside or wholly outside: its centre decides.
-        result = centre_inside.ravel()[cell] & exists
-        undecided = np.flatnonzero(touched.ravel()[cell] | ~exists)
+        undecided = np.flatnonzero(crossed | ~exists)
         if len(undecided):
-            subset = xy[undecided]
+            subset = np.asarray(xy[undecided, :2], dtype=np.float64)
             finite = np.isfinite(subset).all(axis=1)
             hit = np.zeros(len(undecided), dtype=bool)
             for polygon in self.polygons:

@@ -15,7 +15,7 @@ from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.roi import ROI, validate_polygon
 from pytest_metamorphic.lidar.roi.polygon import _points_in_polygon
-from pytest_metamorphic.lidar.roi.raster import _scan_intervals
+from pytest_metamorphic.lidar.roi.raster import _BLOCK, _scan_intervals
 
 SQUARE = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
 # A concave "U" with a notch, exercising several intervals per scan line.
@@ -428,3 +428,24 @@ def test_banded_point_in_polygon_equals_testing_every_edge(seed, k, integer):
     hits = ((y0 <= py) != (y1 <= py)) & (px < crossing)
     expected = (np.count_nonzero(hits, axis=1) & 1).astype(bool)
     assert np.array_equal(_points_in_polygon(xy, polygon), expected)
+
+
+@pytest.mark.parametrize("method", ["raster", "exact"])
+def test_containment_is_the_same_in_blocks_as_point_by_point(method: str) -> None:
+    # The lookup converts and indexes block by block (raster._BLOCK points): a point's
+    # answer must not depend on the block it falls in, its dtype or the array's strides.
+    roi = ROI.from_polygons([np.array([[-20, -8], [35, -3], [30, 28], [-12, 16]], float)])
+    rng = np.random.default_rng(3)
+    sweep = rng.uniform(-60, 60, size=(2 * _BLOCK + 3, 4)).astype(np.float32)
+    sweep[::101, 0] = np.nan
+    sweep[::103, 1] = -np.inf
+    sweep[7] = (roi.raster_range, 0, 0, 0)  # on the grid's open upper edge: off it
+    alone = np.array([roi.contains(point[:2], method=method)[0] for point in sweep[::37]])
+    whole = roi.contains(sweep, method=method)  # (n, 4) float32, strided columns
+    assert np.array_equal(whole[::37], alone)
+    assert not whole[7] and not whole[::101].any() and not whole[::103].any()
+    assert np.array_equal(roi.contains(sweep[:, :2].astype(np.float64), method=method), whole)
+    lattice = rng.integers(-40, 40, size=(_BLOCK + 5, 2))
+    assert np.array_equal(
+        roi.contains(lattice, method=method), roi.contains(lattice.astype(float), method=method)
+    )
