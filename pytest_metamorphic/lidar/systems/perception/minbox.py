@@ -292,12 +292,19 @@ def _hull_candidates(
     the point order.
     """
     keep = ~_inside_octagon(xy, sizes, starts)
+    kept = np.compress(keep, xy, axis=0)  # still contiguous by cluster
+    ends = np.cumsum(np.add.reduceat(keep.astype(np.intp), starts))
+    # One conversion to Python tuples for all clusters, sliced per cluster.
+    points = list(map(tuple, kept.tolist()))
     result = []
-    for begin, size in zip(starts.tolist(), sizes.tolist(), strict=True):
-        chunk = xy[begin : begin + size][keep[begin : begin + size]]
-        if len(chunk) > _QHULL_FROM:
-            chunk = chunk[~_inside_qhull(chunk)]
-        result.append([tuple(v) for v in chunk.tolist()])
+    begin = 0
+    for end in ends.tolist():
+        if end - begin > _QHULL_FROM:
+            chunk = kept[begin:end]
+            result.append(list(map(tuple, chunk[~_inside_qhull(chunk)].tolist())))
+        else:
+            result.append(points[begin:end])
+        begin = end
     return result
 
 
