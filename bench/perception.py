@@ -23,8 +23,9 @@ sweep): MinBox 3.7 ms (65 clusters a sweep, ~40 us of Python each: the exact mon
 hull, Apollo's facing-edge walk and the box along each candidate edge, sequential rules
 with epsilon ties that do not vectorise across clusters without changing boxes; the
 vectorised octagon prune before the hull replaced qhull's 1.7 ms, and on 2026-11-27 it
-went from 0.9 to 0.34 ms column by column: 7.1-7.6 ms a sweep); the ROI raster lookup
-1-2 ms (half of it page faults of whole-sweep temporaries); ground heights 0.9 ms;
+went from 0.9 to 0.34 ms column by column); the ROI raster lookup 1-2 ms (half of it page
+faults of whole-sweep temporaries; in 16k-point blocks since 2026-11-27: 0.75 ms, and the
+pipeline 6.5-6.7 ms a sweep, MinBox 2.8 ms of it); ground heights 0.9 ms;
 clustering 0.5 ms; building and sorting the boxes and classes 1.2 ms. Boolean row
 selection of (n, 4) arrays was 5x slower than ``np.compress`` (now used).
 
