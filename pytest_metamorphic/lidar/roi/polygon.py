@@ -148,7 +148,7 @@ def _on_segment(ax: Any, ay: Any, bx: Any, by: Any, px: Any, py: Any) -> NDArray
 
 def _as_xy(
     xy: ArrayLike, name: str = "xy", *, order: Literal["C", "F"] = "C", convert: bool = True
-) -> NDArray[np.float64]:
+) -> NDArray[Any]:
     """Normalise query points: (n, >=2) array_like or PointCloud -> (n, 2) float64.
 
     ``order="F"`` keeps each coordinate contiguous (for column-wise work on big clouds).
