@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -146,12 +146,9 @@ def _on_segment(ax: Any, ay: Any, bx: Any, by: Any, px: Any, py: Any) -> NDArray
     )
 
 
-def _as_xy(
-    xy: ArrayLike, name: str = "xy", *, order: Literal["C", "F"] = "C", convert: bool = True
-) -> NDArray[Any]:
+def _as_xy(xy: ArrayLike, name: str = "xy", *, convert: bool = True) -> NDArray[Any]:
     """Normalise query points: (n, >=2) array_like or PointCloud -> (n, 2) float64.
 
-    ``order="F"`` keeps each coordinate contiguous (for column-wise work on big clouds).
     ``convert=False``: only checked, returned as the (n, >=2) numeric array it is (for
     callers that convert block by block).
     """
@@ -168,7 +165,7 @@ def _as_xy(
         raise InvalidArgument(f"{name} must be numeric, got dtype {array.dtype}")
     if not convert:
         return array
-    return np.asarray(array[:, :2], dtype=np.float64, order=order)
+    return np.asarray(array[:, :2], dtype=np.float64)
 
 
 def _points_in_polygon(xy: NDArray[np.float64], polygon: NDArray[np.float64]) -> NDArray[np.bool_]:
