@@ -85,6 +85,20 @@ def test_output_is_sorted_and_deterministic(street: Frame) -> None:
     assert [b.center for b in first] == sorted(b.center for b in first)
 
 
+def test_boxes_are_what_the_checked_constructor_builds(kitti_frame: PointCloud) -> None:
+    # The pipeline builds its boxes without Box's checks (they cost a tenth of the box
+    # building): they must be exactly what the checked constructor makes of them.
+    boxes = SUT(kitti_frame, kitti_label_region())
+    assert len(boxes) > 10
+    for box in boxes:
+        checked = Box(box.center, box.size, box.yaw, box.label, box.score, box.points)
+        assert repr(checked) == repr(box)
+        assert checked == box and hash(checked) == hash(box)
+        values = (*box.center, *box.size, box.yaw)
+        assert all(type(v) is float and math.isfinite(v) for v in values)
+        assert min(box.size) > 0 and type(box.points) is int and type(box.label) is str
+
+
 def test_accepts_frames_clouds_and_arrays(street: Frame) -> None:
     expected = SUT(street)
     assert SUT(street.cloud, ROAD) == expected
