@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import label
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.model.cloud import column_bounds
+from pytest_metamorphic.lidar.systems.perception.grid import grid_cells
 
 __all__ = ["ClusterParams", "Clusters", "cluster_points"]
 
@@ -86,14 +86,10 @@ def cluster_points(xy: NDArray[np.floating], params: ClusterParams = ClusterPara
     if n == 0:
         empty = np.empty(0, dtype=np.intp)
         return Clusters(empty, 0, empty, np.empty(0, dtype=np.int64))
-    cells = np.floor(xy[:, :2] * np.float32(1.0 / params.cell_size)).astype(np.int64)
-    low, high = column_bounds(cells)
-    cells -= low
-    shape = high - low + 1
-    flat = cells[:, 0] * shape[1] + cells[:, 1]
-    occupied = np.zeros(int(shape[0] * shape[1]), dtype=bool)
+    flat, shape = grid_cells(xy, params.cell_size)
+    occupied = np.zeros(shape[0] * shape[1], dtype=bool)
     occupied[flat] = True
-    grid, count = label(occupied.reshape(int(shape[0]), int(shape[1])), _EIGHT_CONNECTED)
+    grid, count = label(occupied.reshape(shape), _EIGHT_CONNECTED)
     cell_labels = grid.reshape(-1)
     # ndimage numbers components from 1 in row-major order of their first cell.
     labels = cell_labels[flat].astype(np.intp) - 1

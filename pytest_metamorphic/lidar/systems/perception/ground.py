@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import grey_erosion
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.systems.perception.grid import grid_cells
 
 __all__ = ["GroundParams", "ground_heights"]
 
@@ -104,16 +105,7 @@ def ground_heights(
     n = len(xyz)
     if n == 0:
         return np.empty(0, dtype=np.float32)
-    # Column by column, in place: 3.5x faster than (n, 2) cells and their bounds.
-    scale = np.float32(1.0 / params.cell_size)
-    flat = np.floor(xyz[:, 0] * scale).astype(np.int64)  # the x cell, then the flat index
-    cell_y = np.floor(xyz[:, 1] * scale).astype(np.int64)
-    x0, y0 = flat.min(), cell_y.min()
-    shape = (int(flat.max() - x0) + 1, int(cell_y.max() - y0) + 1)
-    flat -= x0
-    flat *= shape[1]
-    cell_y -= y0
-    flat += cell_y
+    flat, shape = grid_cells(xyz, params.cell_size)
     z = xyz[:, 2]
     usable = z >= params.floor_z
     lowest = _cell_heights(flat[usable], z[usable], shape[0] * shape[1], params.rank)
