@@ -13,7 +13,7 @@ from scipy.spatial import ConvexHull
 from pytest_metamorphic import DataError, InvalidArgument
 from pytest_metamorphic.lidar.io.apollo import read_apollo_clusters
 from pytest_metamorphic.lidar.systems.perception import minbox
-from pytest_metamorphic.lidar.systems.perception.minbox import min_box, min_boxes
+from pytest_metamorphic.lidar.systems.perception.minbox import hull, min_box, min_boxes
 
 CLUSTERS = ("apollo", "min_box_object_builder", "QB9178_3_1461381834_1461382134_30651.pcd")
 
@@ -82,9 +82,9 @@ def test_edges_facing_away_from_the_sensor_are_not_tried(
 
 def _global_min_area(points: np.ndarray) -> float:
     xy = points[:, :2].astype(np.float64)
-    hull = xy[ConvexHull(xy).vertices]
+    vertices = xy[ConvexHull(xy).vertices]
     best = math.inf
-    for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True):
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
         u = (b - a) / np.linalg.norm(b - a)
         along, across = xy @ u, xy @ np.array([-u[1], u[0]])
         best = min(best, np.ptp(along) * np.ptp(across))
@@ -146,7 +146,7 @@ def test_box_encloses_every_point(points: np.ndarray) -> None:
 def test_hull_has_qhulls_vertices(points: np.ndarray) -> None:
     xy = points[:, :2].astype(np.float64)
     unique = np.unique(xy, axis=0)
-    ours = minbox._convex_hull([tuple(p) for p in xy.tolist()])
+    ours = hull.convex_hull([tuple(p) for p in xy.tolist()])
     if len(unique) < 3 or len(ours) < 3:
         return  # collinear: Apollo falls back to the bounding rectangle
     try:
@@ -166,11 +166,11 @@ def test_interior_pruning_changes_nothing(
     pruned = min_boxes(points, labels)
     with monkeypatch_module.context() as patch:
         # no pruning at all: neither the octagon nor qhull
-        patch.setattr(minbox, "_QHULL_FROM", 10**9)
-        patch.setattr(minbox, "_inside_octagon", lambda xy, *_: np.zeros(len(xy), dtype=bool))
+        patch.setattr(hull, "_QHULL_FROM", 10**9)
+        patch.setattr(hull, "_inside_octagon", lambda xy, *_: np.zeros(len(xy), dtype=bool))
         whole = min_boxes(points, labels)
     with monkeypatch_module.context() as patch:
-        patch.setattr(minbox, "_QHULL_FROM", 0)
+        patch.setattr(hull, "_QHULL_FROM", 0)
         eager = min_boxes(points, labels)
     for a, b in zip(pruned, eager, strict=True):
         _assert_same_box(a, b)
@@ -184,11 +184,11 @@ def test_the_octagon_never_prunes_a_hull_vertex(parts: list[np.ndarray]) -> None
     xy = np.concatenate(parts)[:, :2].astype(np.float32).astype(np.float64)
     sizes = np.array([len(p) for p in parts])
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    inside = minbox._inside_octagon(xy, sizes, starts)
+    inside = hull._inside_octagon(xy, sizes, starts)
     for begin, size in zip(starts, sizes, strict=True):
         chunk = [tuple(p) for p in xy[begin : begin + size].tolist()]
         kept = {p for p, drop in zip(chunk, inside[begin : begin + size], strict=True) if not drop}
-        assert set(minbox._convex_hull(chunk)) <= kept
+        assert set(hull.convex_hull(chunk)) <= kept
 
 
 @settings(max_examples=80)
@@ -196,9 +196,9 @@ def test_the_octagon_never_prunes_a_hull_vertex(parts: list[np.ndarray]) -> None
 def test_the_octagon_keeps_hull_vertices_of_lattice_points(cells: list[tuple[int, int]]) -> None:
     # exact ties and collinear points everywhere: extremes shared by several points
     xy = np.array(cells, dtype=np.float64) * 0.25 + 30.0
-    inside = minbox._inside_octagon(xy, np.array([len(xy)]), np.array([0]))
+    inside = hull._inside_octagon(xy, np.array([len(xy)]), np.array([0]))
     kept = {tuple(p) for p, drop in zip(xy.tolist(), inside, strict=True) if not drop}
-    assert set(minbox._convex_hull([tuple(p) for p in xy.tolist()])) <= kept
+    assert set(hull.convex_hull([tuple(p) for p in xy.tolist()])) <= kept
 
 
 def test_the_octagon_keeps_degenerate_clusters() -> None:
@@ -208,7 +208,7 @@ def test_the_octagon_keeps_degenerate_clusters() -> None:
         dtype=np.float64,
     )
     sizes, starts = np.array([5, 4, 5]), np.array([0, 5, 9])
-    inside = minbox._inside_octagon(xy, sizes, starts)
+    inside = hull._inside_octagon(xy, sizes, starts)
     assert inside.tolist() == [False] * 13 + [True]
 
 
