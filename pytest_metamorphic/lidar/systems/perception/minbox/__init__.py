@@ -183,7 +183,7 @@ def min_boxes(
     defaults = _default_boxes(low, high)
     hulls = hull_candidates(xyz[:, :2].astype(np.float64), sizes, starts)
     lows, highs = low.tolist(), high.tolist()
-    outlines, floors, heights, edges = [], [], [], []
+    outlines, floors, heights = [], [], []
     for cluster, size in enumerate(sizes.tolist()):
         if size >= 4:
             outline = hull_polygon(hulls[cluster], lows[cluster], highs[cluster], start, ref)
@@ -194,8 +194,8 @@ def min_boxes(
             floors.append(defaults.floors[cluster])
             heights.append(defaults.heights[cluster])
         outlines.append(outline)
-        edges.append(facing_edges(outline, ref))
     every, polygons = _polygons(outlines, floors)
+    edges = facing_edges(outlines, every, ref)
     fits = best_boxes(every, [len(outline) for outline in outlines], edges)
     boxes = []
     for cluster, (size, fit) in enumerate(zip(sizes.tolist(), fits, strict=True)):
