@@ -278,3 +278,77 @@ def test_nearest_start_boxes_turn_with_the_scene(points: np.ndarray, quarter_tur
     assert (b.length, b.width) == pytest.approx((a.length, a.width), abs=1e-6)
     if a.length - a.width > 1e-3:
         assert abs(math.remainder(b.yaw - a.yaw - theta, math.pi)) < 1e-6
+
+
+def _apollo_area_along_one_edge(polygon: list[tuple[float, float]], first: int) -> tuple:
+    """min_box.cc's ComputeAreaAlongOneEdge, line by line (all pairs i < j for the length)."""
+    index = (first + 1) % len(polygon)
+    (bx, by), (ax, ay) = polygon[first], polygon[index]
+    projected, wid, v, vn = [], 0.0, (0.0, 0.0), (0.0, 0.0)
+    for i, (ox, oy) in enumerate(polygon):
+        if i in (first, index):
+            projected.append((ox, oy))
+            continue
+        k = (ax - ox) * (bx - ax) + (ay - oy) * (by - ay)
+        k = -(k / ((bx - ax) ** 2 + (by - ay) ** 2))
+        n = ((bx - ax) * k + ax, (by - ay) * k + ay)
+        height = abs((ox - bx) * (ay - by) - (ax - bx) * (oy - by))
+        height /= math.sqrt((ax - bx) ** 2 + (ay - by) ** 2)
+        if height > wid:
+            wid, v, vn = height, (ox, oy), n
+        projected.append(n)
+    length, p1, p2 = 0.0, 0, 0
+    for i in range(len(projected) - 1):
+        for j in range(i + 1, len(projected)):
+            dist = math.dist(projected[i], projected[j])
+            if dist > length:
+                length, p1, p2 = dist, i, j
+    n1, n2 = projected[p1], projected[p2]
+    vp1 = (v[0] + n1[0] - vn[0], v[1] + n1[1] - vn[1])
+    vp2 = (v[0] + n2[0] - vn[0], v[1] + n2[1] - vn[1])
+    center = ((vp1[0] + vp2[0] + n1[0] + n2[0]) / 4, (vp1[1] + vp2[1] + n1[1] + n2[1]) / 4)
+    if length > wid:
+        direction = (n2[0] - n1[0], n2[1] - n1[1])
+    else:
+        direction = (vp1[0] - n1[0], vp1[1] - n1[1])
+    long_side, short_side = max(length, wid), min(length, wid)
+    return long_side * short_side, long_side, short_side, *center, *direction
+
+
+def test_boxes_along_all_edges_at_once_are_apollos_one_edge_at_a_time() -> None:
+    # The vectorised ComputeAreaAlongOneEdge (every candidate edge of a frame in one
+    # pass, Apollo's O(h^2) pair search replaced by the extremes along the edge) against
+    # a literal port, on every edge of random hulls: float points, and lattice points
+    # whose projections tie exactly (where the pair Apollo keeps is the subtle part).
+    from pytest_metamorphic.lidar.systems.perception.minbox import edges
+
+    rng = np.random.default_rng(20261127)
+    polygons = []
+    for trial in range(300):
+        xy = rng.normal(rng.normal(0, 20, 2), rng.choice([0.05, 1.0, 5.0]), (12, 2))
+        if trial % 2:
+            xy = np.round(xy * 2) / 2  # a 0.5 m lattice: ties in every direction
+        vertices = hull.hull_polygon(
+            [tuple(p) for p in xy.astype(np.float32).astype(np.float64).tolist()],
+            xy.min(axis=0).tolist(), xy.max(axis=0).tolist(), "apollo", (0.0, 0.0, 0.0),
+        )  # fmt: skip
+        if len(set(vertices)) == len(vertices):  # no zero-length edge (tested below)
+            polygons.append(vertices)
+    every = np.array([vertex for polygon in polygons for vertex in polygon])
+    candidates = [list(range(len(polygon))) for polygon in polygons]
+    found = edges._boxes_along_edges(
+        every[:, 0], every[:, 1], [len(polygon) for polygon in polygons], candidates
+    )
+    expected = [
+        _apollo_area_along_one_edge(polygon, edge)
+        for polygon, polygon_edges in zip(polygons, candidates, strict=True)
+        for edge in polygon_edges
+    ]
+    assert len(found) == len(expected) > 1000
+    for ours, apollos in zip(found, expected, strict=True):
+        assert ours is not None
+        assert ours == pytest.approx(apollos, rel=1e-9, abs=1e-9)
+    # A zero-length edge (Apollo divides by zero there) gives no box.
+    square = [(0.0, 0.0), (0.0, 1.0), (0.0, 1.0), (1.0, 0.0)]
+    boxes = edges._boxes_along_edges(*np.array(square).T, [4], [[1, 2]])
+    assert boxes[0] is None and boxes[1] is not None
