@@ -307,10 +307,8 @@ def _apollo_area_along_one_edge(polygon: list[tuple[float, float]], first: int) 
     vp1 = (v[0] + n1[0] - vn[0], v[1] + n1[1] - vn[1])
     vp2 = (v[0] + n2[0] - vn[0], v[1] + n2[1] - vn[1])
     center = ((vp1[0] + vp2[0] + n1[0] + n2[0]) / 4, (vp1[1] + vp2[1] + n1[1] + n2[1]) / 4)
-    if length > wid:
-        direction = (n2[0] - n1[0], n2[1] - n1[1])
-    else:
-        direction = (vp1[0] - n1[0], vp1[1] - n1[1])
+    along = n2 if length > wid else vp1
+    direction = (along[0] - n1[0], along[1] - n1[1])
     long_side, short_side = max(length, wid), min(length, wid)
     return long_side * short_side, long_side, short_side, *center, *direction
 
