@@ -18,16 +18,21 @@ built once before timing (Apollo builds it per frame from the map; here the map 
 fixed). Timing: each frame is run ``--repeat`` times per pipeline, interleaved; the
 median over all runs is reported.
 
-Where the time goes (step timers and cProfile, idle 2-core machine, 2026-11-26; ~8 ms a
-sweep): MinBox 3.7 ms (65 clusters a sweep, ~40 us of Python each: the exact monotone-chain
-hull, Apollo's facing-edge walk and the box along each candidate edge, sequential rules
-with epsilon ties that do not vectorise across clusters without changing boxes; the
-vectorised octagon prune before the hull replaced qhull's 1.7 ms, and on 2026-11-27 it
-went from 0.9 to 0.34 ms column by column); the ROI raster lookup 1-2 ms (half of it page
-faults of whole-sweep temporaries; in 16k-point blocks since 2026-11-27: 0.75 ms, and the
-pipeline 6.5-6.7 ms a sweep, MinBox 2.8 ms of it); ground heights 0.9 ms;
-clustering 0.5 ms; building and sorting the boxes and classes 1.2 ms. Boolean row
-selection of (n, 4) arrays was 5x slower than ``np.compress`` (now used).
+Where the time goes (step timers and cProfile, pinned, idle 2-core machine, 2026-11-27;
+4.9 ms a sweep run alone, 5.3 ms interleaved with the baseline as timed here, which
+evicts the caches): ROI lookup 0.76 ms (Apollo's bitmap, in 16k-point blocks; with
+whole-sweep temporaries their page faults were half of it); ground heights 0.47 ms and
+segmentation 0.31 ms (both bin points into grid cells column by column in place:
+``grid.grid_cells``, 0.30 -> 0.08 ms each time); the input's finite check 0.26 ms (the
+sweep's first touch, cold); MinBox 2.2 ms of the 2.9 ms box building, for ~65 objects a
+sweep: hull candidates 0.86 (the vectorised octagon prune 0.39, qhull for the ~3 objects
+with more than 64 points left 0.25), the exact hull and PCL's angular sort 0.41 (Python:
+~43 hulls of median 7 vertices), the facing-edge walks 0.28 (Python: Apollo's sequential
+rules with epsilon ties), the boxes along all candidate edges 0.21 (one vectorised pass,
+was 0.30 edge by edge in Python), validation, sorting and objects 0.4. Since 2026-11-26:
+MinBox 3.7 -> 2.2 ms, the pipeline 8.0 -> 5.3 ms; boolean row selection of (n, 4) arrays
+was 5x slower than ``np.compress`` (now used). What is left per object is Python with
+sequential rules (the hull, the walks); a further prune cannot shorten them.
 
     python bench/perception.py [--repeat N] [--roi wedge|disc]
 """
