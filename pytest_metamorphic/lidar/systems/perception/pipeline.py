@@ -351,9 +351,7 @@ def _to_box(shape: MinBox, label: str, bottom: float, top: float) -> Box:
     width = max(shape.width, MIN_EXTENT)
     height = max(top - bottom, MIN_EXTENT)
     x, y, _ = shape.center
-    # MinBox's values are finite floats (its input was checked), the sizes at least
-    # MIN_EXTENT and the label one of classify's: nothing for Box to check again.
-    return Box._checked_by_caller(
+    return Box._quick(
         (x, y, (bottom + top) / 2.0),
         (length, width, height),
         shape.yaw,

@@ -86,8 +86,8 @@ def test_output_is_sorted_and_deterministic(street: Frame) -> None:
 
 
 def test_boxes_are_what_the_checked_constructor_builds(kitti_frame: PointCloud) -> None:
-    # The pipeline builds its boxes without Box's checks (they cost a tenth of the box
-    # building): they must be exactly what the checked constructor makes of them.
+    # The pipeline builds its boxes with Box._quick (Box's checks without the frozen
+    # dataclass's __init__): they must be exactly what the constructor makes of them.
     boxes = SUT(kitti_frame, kitti_label_region())
     assert len(boxes) > 10
     for box in boxes:
@@ -95,8 +95,26 @@ def test_boxes_are_what_the_checked_constructor_builds(kitti_frame: PointCloud) 
         assert repr(checked) == repr(box)
         assert checked == box and hash(checked) == hash(box)
         values = (*box.center, *box.size, box.yaw)
-        assert all(type(v) is float and math.isfinite(v) for v in values)
-        assert min(box.size) > 0 and type(box.points) is int and type(box.label) is str
+        assert all(type(v) is float for v in values)
+
+
+def test_a_stage_that_returns_a_bad_box_is_still_refused(street: Frame) -> None:
+    class BadLabels(ReferencePerception):
+        def classify(self, features):  # type: ignore[no-untyped-def]
+            return ["truck"] * len(features.length)
+
+    with pytest.raises(InvalidArgument, match="label 'truck' must be one of"):
+        BadLabels()(street)
+    quick = Box._quick(np.float32([1, 2, 3]), (4, 2, 1.5), np.float64(0.5), "car", 7)
+    assert quick == Box((1.0, 2.0, 3.0), (4.0, 2.0, 1.5), 0.5, "car", points=7)
+    assert all(type(v) is float for v in (*quick.center, *quick.size, quick.yaw))
+    for center, size, match in [
+        ((0, 0, math.nan), (1, 1, 1), "non-finite"),
+        ((0, 0, 0), (1, 0, 1), "must be positive"),
+        ((0, 0), (1, 1, 1), "need 3 values"),
+    ]:
+        with pytest.raises(InvalidArgument, match=match):
+            Box._quick(center, size, 0.0, "car", None)
 
 
 def test_accepts_frames_clouds_and_arrays(street: Frame) -> None:
