@@ -3,7 +3,8 @@
 # Authors, licensed under the Apache License, Version 2.0.
 # What it derives from: MinBoxObjectBuilder::ReconstructPolygon and ComputeAreaAlongOneEdge
 # (min_box.cc).
-# Changed: re-implemented in Python and NumPy, with the differences stated below. See NOTICE.
+# Changed: re-implemented in Python and NumPy, with the differences stated in the docstring
+# of pytest_metamorphic.lidar.systems.perception.minbox. See NOTICE.
 # SPDX-License-Identifier: Apache-2.0
 """MinBox's box: the edges of the polygon that face the sensor (``ReconstructPolygon``) and
 the minimum-area box along one of them (``ComputeAreaAlongOneEdge``)."""

@@ -2,7 +2,8 @@
 # Derived from Apollo (https://github.com/ApolloAuto/apollo), Copyright 2017-2018 The Apollo
 # Authors, licensed under the Apache License, Version 2.0.
 # What it derives from: MinBoxObjectBuilder::ComputePolygon2dxy (min_box.cc).
-# Changed: re-implemented in Python and NumPy, with the differences stated below. See NOTICE.
+# Changed: re-implemented in Python and NumPy, with the differences stated in the docstring
+# of pytest_metamorphic.lidar.systems.perception.minbox. See NOTICE.
 # SPDX-License-Identifier: Apache-2.0
 """MinBox's polygon: the clockwise convex hull of a cluster's points (``ComputePolygon2dxy``),
 after vectorised prunes of each cluster's interior (an octagon of extreme points, qhull for
