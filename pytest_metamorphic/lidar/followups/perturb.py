@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud, column_bounds
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.obstacles import Box, footprint_distances
 from pytest_metamorphic.lidar.roi import ROI, CellSet
 
 __all__ = [
@@ -432,19 +432,9 @@ def _near_boxes(
     origins: NDArray[np.float64], cell: float, boxes: Sequence[Box], clearance: float
 ) -> NDArray[np.bool_]:
     """Cells any point of which may lie within ``clearance`` of a box footprint."""
-    near = np.zeros(len(origins), dtype=bool)
-    centres = origins + cell / 2.0
     # A cell's points are within cell * sqrt(2) / 2 of its centre.
     reach = clearance + cell * math.sqrt(0.5)
-    for box in boxes:
-        length, width, _ = box.size
-        offset = centres - np.asarray(box.center[:2])
-        c, s = math.cos(box.yaw), math.sin(box.yaw)
-        along = np.abs(offset[:, 0] * c + offset[:, 1] * s) - length / 2.0
-        across = np.abs(-offset[:, 0] * s + offset[:, 1] * c) - width / 2.0
-        distance = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0))
-        near |= distance <= reach
-    return near
+    return footprint_distances(origins + cell / 2.0, boxes) <= reach
 
 
 # -- point edits -------------------------------------------------------------------------------
