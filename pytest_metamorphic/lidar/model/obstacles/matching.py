@@ -81,10 +81,15 @@ def _rounded_twins(first: Box, second: Box) -> bool:
 # -- matchers ----------------------------------------------------------------------------------
 
 
-def _same_labels(source: Sequence[Box], followup: Sequence[Box]) -> NDArray[np.bool_]:
-    a = np.array([box.label for box in source], dtype=object).reshape(-1, 1)
-    b = np.array([box.label for box in followup], dtype=object).reshape(1, -1)
-    return np.asarray(a == b, dtype=bool).reshape(len(source), len(followup))
+def _labelled(
+    compatible: NDArray[np.bool_], same_label: bool, source: Sequence[Box], followup: Sequence[Box]
+) -> NDArray[np.bool_]:
+    """``compatible``, and where ``same_label`` asks for it, only pairs of equal labels."""
+    if same_label:
+        a = np.array([box.label for box in source], dtype=object).reshape(-1, 1)
+        b = np.array([box.label for box in followup], dtype=object).reshape(1, -1)
+        compatible &= np.asarray(a == b, dtype=bool).reshape(len(source), len(followup))
+    return compatible
 
 
 def _check_flag(value: Any, name: str) -> None:
@@ -125,10 +130,7 @@ class IoUMatcher:
         self, source: Sequence[Any], followup: Sequence[Any]
     ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
         iou = bev_iou(source, followup)
-        compatible = iou >= self.min_iou
-        if self.same_label:
-            compatible &= _same_labels(source, followup)
-        return compatible, 1.0 - iou
+        return _labelled(iou >= self.min_iou, self.same_label, source, followup), 1.0 - iou
 
 
 @dataclass(frozen=True)
@@ -163,7 +165,5 @@ class CenterDistanceMatcher:
         self, source: Sequence[Any], followup: Sequence[Any]
     ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
         distance = center_distances(source, followup)
-        compatible = distance <= self.max_distance
-        if self.same_label:
-            compatible &= _same_labels(source, followup)
-        return compatible, distance
+        near = distance <= self.max_distance
+        return _labelled(near, self.same_label, source, followup), distance
