@@ -2,7 +2,7 @@
 
 :func:`scenes` draws a small :class:`~pytest_metamorphic.lidar.synthetic.Scene`: an ROI, a
 sensor height, a list of obstacles on the road (class sizes from
-:data:`~pytest_metamorphic.lidar.model.obstacles.SIZE_PRIORS`, headings in 5 degree steps) and
+:data:`~pytest_metamorphic.lidar.model.obstacles.box.SIZE_PRIORS`, headings in 5 degree steps) and
 a list of background objects outside the ROI (poles, trees, buildings).
 
 Obstacles occupy distinct *slots*: points of an 8 m lattice through (10, 0) that lie deep

@@ -448,7 +448,7 @@ def judged_equal(*, scope: ScopeLike = "roi", matcher: Matcher | None = None) ->
     Obstacles are compared as multisets (the order a detector lists them in is not
     part of its answer: DBSCAN numbers clusters in the order it meets their points) and
     identical means equal up to floating-point rounding
-    (:data:`~pytest_metamorphic.lidar.model.obstacles.ROUNDING`), for every scope,
+    (:data:`~pytest_metamorphic.lidar.model.obstacles.matching.ROUNDING`), for every scope,
     ``"all"`` included. Outputs that are not lists of boxes are compared exactly. With a
     ``matcher`` (a detector whose outputs jitter, e.g. a neural network) "identical"
     becomes "matched": every judged obstacle of either side needs its own match on the
