@@ -378,12 +378,26 @@ class _Equal(_Scoped):
 
 class _Same(_Scoped):
     """Judged obstacles are the same on both sides up to ``matcher``: each judged obstacle
-    of either output has its own match (one-to-one) among all obstacles of the other."""
+    of either output has its own match (one-to-one) among all obstacles of the other.
+    Obstacles a detector says fewer than ``min_points`` returns support are not judged."""
 
-    def __init__(self, matcher: Matcher, scope: ObstacleScope) -> None:
+    def __init__(self, matcher: Matcher, scope: ObstacleScope, min_points: int = 0) -> None:
         self.matcher = matcher
         self.scope = scope
-        self.name = f"same[{matcher.name}; {scope.describe()}]"
+        self.min_points = min_points
+        support = f", >= {min_points} points" if min_points else ""
+        self.name = f"same[{matcher.name}; {scope.describe()}{support}]"
+
+    def _split(
+        self, source_output: Any, followup_output: Any, context: CheckContext
+    ) -> tuple[list[Box], list[Box], NDArray[np.bool_], NDArray[np.bool_]]:
+        source, followup, judged, followup_judged = super()._split(
+            source_output, followup_output, context
+        )
+        if self.min_points:
+            judged &= _supported(source, self.min_points)
+            followup_judged &= _supported(followup, self.min_points)
+        return source, followup, judged, followup_judged
 
     def _unmatched(
         self, boxes: list[Box], judged: NDArray[np.bool_], other: list[Box]
@@ -415,6 +429,11 @@ class _Same(_Scoped):
         return Verdict(False, self.name, "; ".join(lines) + self._note(details), details)
 
 
+def _supported(boxes: list[Box], min_points: int) -> NDArray[np.bool_]:
+    """(n,) bool: supported by at least ``min_points`` returns, or support not reported."""
+    return np.array([box.points is None or box.points >= min_points for box in boxes], bool)
+
+
 def obstacles_kept(*, matcher: Matcher | None = None, scope: ScopeLike = "roi") -> Relation:
     """MR1's output relation: every judged source obstacle has its own match in ``O'``.
 
@@ -442,7 +461,9 @@ def judged_count(op: str = "<=", *, scope: ScopeLike = "roi") -> Relation:
     return cardinality(op) if chosen.everything else _Count(op, chosen)
 
 
-def judged_equal(*, scope: ScopeLike = "roi", matcher: Matcher | None = None) -> Relation:
+def judged_equal(
+    *, scope: ScopeLike = "roi", matcher: Matcher | None = None, min_points: int = 0
+) -> Relation:
     """``O == O'`` over judged obstacles: each needs an identical one on the other side.
 
     Obstacles are compared as multisets (the order a detector lists them in is not
@@ -452,9 +473,15 @@ def judged_equal(*, scope: ScopeLike = "roi", matcher: Matcher | None = None) ->
     ``"all"`` included. Outputs that are not lists of boxes are compared exactly. With a
     ``matcher`` (a detector whose outputs jitter, e.g. a neural network) "identical"
     becomes "matched": every judged obstacle of either side needs its own match on the
-    other, one to one.
+    other, one to one; then obstacles whose ``points`` (the returns the detector says
+    support them) are fewer than ``min_points`` are not judged either: a network's
+    detection of an object seen by 2 or 3 returns flips when one of them is repeated.
     """
     chosen = as_scope(scope)
+    if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 0:
+        raise InvalidArgument(f"min_points={min_points!r} must be an int >= 0")
     if matcher is not None:
-        return _Same(matcher, chosen)
+        return _Same(matcher, chosen, min_points)
+    if min_points:
+        raise InvalidArgument("min_points needs a matcher (exact comparison judges every box)")
     return _Equal(chosen)

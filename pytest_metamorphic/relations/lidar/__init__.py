@@ -154,14 +154,14 @@ def lidar_relations(
         moved["same_label"] = profile.moved_same_label
     if profile.moved_shared:
         moved["exclusive"] = False
-    same, kept = profile.same, profile.kept
+    same, kept, support = profile.same, profile.kept, profile.same_min_points
     return [
         mr1_subset(n=noise, scope=scope, matcher=kept),
         mr1_cardinality(n=noise, scope=scope),
-        outside_noise_invariance(n=noise, scope=scope, matcher=same),
-        outside_removal(scope=scope, matcher=same),
-        permutation_invariance(matcher=same),
-        duplication_invariance(matcher=same),
+        outside_noise_invariance(n=noise, scope=scope, matcher=same, min_points=support),
+        outside_removal(scope=scope, matcher=same, min_points=support),
+        permutation_invariance(matcher=same, min_points=support),
+        duplication_invariance(matcher=same, min_points=support),
         rotation_equivariance(angles=rotation, scope=scope, **moved),
         mirror_symmetry(scope=scope, **moved),
         beam_loss(scope=scope),

@@ -24,12 +24,12 @@ __all__ = ["PACKET_POINTS", "duplication_invariance", "permutation_invariance"]
 Identity = Literal["points", "exact"]
 
 
-def _same_obstacles(identity: Identity, matcher: Matcher | None) -> Relation:
+def _same_obstacles(identity: Identity, matcher: Matcher | None, min_points: int) -> Relation:
     """The output relation of the order and repetition invariances."""
     if identity not in ("points", "exact"):
         raise InvalidArgument(f"identity={identity!r} must be 'points' or 'exact'")
-    if matcher is not None:
-        return judged_equal(scope="all", matcher=matcher)
+    if matcher is not None or min_points:
+        return judged_equal(scope="all", matcher=matcher, min_points=min_points)
     return SameHeldPoints() if identity == "points" else judged_equal(scope="all")
 
 
@@ -37,6 +37,7 @@ def permutation_invariance(
     *,
     identity: Identity = "points",
     matcher: Matcher | None = None,
+    min_points: int = 0,
     name: str = "points reordered => O == O'",
 ) -> MetamorphicRelation:
     """The order of the points in the cloud does not matter, for any obstacle.
@@ -59,11 +60,14 @@ def permutation_invariance(
     matcher : Matcher, optional
         Compare obstacles by it, both ways, instead
         (:data:`~pytest_metamorphic.lidar.judging.tolerance.LEARNED`).
+    min_points : int
+        With a ``matcher``: obstacles supported by fewer returns (``Box.points``) are not
+        judged (a network's detection of an object seen by 2 or 3 returns flips).
     """
     return MetamorphicRelation(
         name,
         lambda frame: permuted_points(_frame(frame)),
-        _same_obstacles(identity, matcher),
+        _same_obstacles(identity, matcher, min_points),
     )
 
 
@@ -76,6 +80,7 @@ def duplication_invariance(
     max_size: int = 100,
     identity: Identity = "points",
     matcher: Matcher | None = None,
+    min_points: int = 0,
     name: str = "points repeated => O == O'",
 ) -> MetamorphicRelation:
     """Repeating points does not matter.
@@ -83,13 +88,13 @@ def duplication_invariance(
     Follow-ups repeat, in order of shrinking preference: up to ``max_size`` scattered
     points; one packet's worth of consecutive points (:data:`PACKET_POINTS`, a driver
     that sends a packet twice); or the whole sweep (two drivers publishing one topic).
-    ``identity`` and ``matcher`` as for :func:`permutation_invariance`: by default a
+    ``identity``, ``matcher`` and ``min_points`` as for :func:`permutation_invariance`: by default a
     repeated point that only moves a box's border or its score is no violation (the
     change is counted as information), an obstacle lost, split, merged or reclassified
     is.
     """
     _check_size(max_size, "max_size")
-    same = _same_obstacles(identity, matcher)
+    same = _same_obstacles(identity, matcher, min_points)
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         frame = _frame(frame)

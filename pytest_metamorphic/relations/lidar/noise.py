@@ -146,6 +146,7 @@ def outside_noise_invariance(
     max_size: int = 1000,
     scope: ScopeLike = "roi",
     matcher: Matcher | None = None,
+    min_points: int = 0,
     name: str = "noise outside ROI => O == O'",
 ) -> MetamorphicRelation:
     """Points outside the ROI change nothing judged: the judged obstacles are equal.
@@ -153,10 +154,12 @@ def outside_noise_invariance(
     ``n``, ``max_size`` and ``scope`` as for :func:`mr1_subset`. Every judged obstacle of
     either output needs an identical one in the other (order aside); with
     ``scope="all"`` the two outputs must be equal exactly, order included. With a
-    ``matcher``, "identical" is "matched", both ways (a detector whose outputs jitter).
+    ``matcher``, "identical" is "matched", both ways (a detector whose outputs jitter),
+    and obstacles supported by fewer than ``min_points`` returns (``Box.points``) are not
+    judged (:func:`~pytest_metamorphic.lidar.judging.scope.judged_equal`).
     """
     _check_noise(n, max_size)
-    relation = judged_equal(scope=scope, matcher=matcher)
+    relation = judged_equal(scope=scope, matcher=matcher, min_points=min_points)
     return MetamorphicRelation(name, _noise(n, max_size), relation)
 
 
@@ -167,6 +170,7 @@ def outside_removal(
     scope: ScopeLike = "roi",
     clearance: float | None = None,
     matcher: Matcher | None = None,
+    min_points: int = 0,
     name: str = "outside-ROI points removed => O == O'",
 ) -> MetamorphicRelation:
     """Removing points outside the ROI changes nothing judged.
@@ -183,10 +187,10 @@ def outside_removal(
     judged obstacles without any fault, unlike adding sparse noise there. The default is
     5 m with the ROI scope (beyond the reference ground window's 3.5 m) and 0 with
     ``scope="all"``, for ROI-first stacks, where no outside point may matter.
-    ``matcher`` as for :func:`outside_noise_invariance`.
+    ``matcher`` and ``min_points`` as for :func:`outside_noise_invariance`.
     """
     chosen = as_scope(scope)
-    relation = judged_equal(scope=chosen, matcher=matcher)
+    relation = judged_equal(scope=chosen, matcher=matcher, min_points=min_points)
     if method not in ("raster", "exact"):
         raise InvalidArgument(f"method={method!r} must be 'raster' or 'exact'")
     _check_size(max_size, "max_size")
