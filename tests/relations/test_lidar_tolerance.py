@@ -48,6 +48,7 @@ def test_objects_seen_by_a_few_returns_are_not_judged_by_the_learned_invariances
     ghost = Box((33.9, 0.0, -1.0), (0.6, 0.3, 1.6), 0.0, "cyclist", points=3)
     appeared = same.check(cars, [*cars, ghost], CONTEXT)
     assert appeared.holds and appeared.details["judged_followup"] == 1
+    assert "or seen by fewer than 10 returns changed" in appeared.explanation
     assert same.check([*cars, ghost], cars, CONTEXT).holds  # nor when it disappears
     # Well seen, or of unknown support, it is judged both ways.
     seen = Box(ghost.center, ghost.size, 0.0, "cyclist", points=10)

@@ -399,6 +399,16 @@ class _Same(_Scoped):
             followup_judged &= _supported(followup, self.min_points)
         return source, followup, judged, followup_judged
 
+    def _note(self, details: dict[str, Any]) -> str:
+        count = details["unjudged_changes"]
+        if not count or not self.min_points:
+            return super()._note(details)
+        return (
+            f" ({count} obstacle(s) outside the judged region ({self.scope.describe()}) or "
+            f"seen by fewer than {self.min_points} returns changed: shown as information, "
+            "not judged)"
+        )
+
     def _unmatched(
         self, boxes: list[Box], judged: NDArray[np.bool_], other: list[Box]
     ) -> list[int]:
