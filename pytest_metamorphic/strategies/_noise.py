@@ -133,17 +133,12 @@ def noise_outside_roi(
     """
     frame = _check_frame(frame)
     bounds = _sizes(n, min_size, max_size)
-    # Fail now, not inside Hypothesis: no ROI, bad range or margin, empty frame.
-    NoiseOutsideROI.from_seeds(frame, [], roi=roi, max_range=max_range, margin_cells=margin_cells)
-    NoiseOutsideROI.from_seeds(frame, [0], roi=roi, max_range=max_range, margin_cells=margin_cells)
-
-    def build(values: list[int]) -> NoiseOutsideROI:
-        return NoiseOutsideROI.from_seeds(
-            frame, values, roi=roi, max_range=max_range, margin_cells=margin_cells
-        )
-
+    # Fail now, not inside Hypothesis: no ROI, bad range or margin, empty frame, no room.
+    # The recipe is the frame's, shared by every follow-up drawn from this strategy.
+    noise = NoiseOutsideROI.prepare(frame, roi=roi, max_range=max_range, margin_cells=margin_cells)
+    noise.from_seeds([0])
     extra = {"max_range": float(max_range), "margin_cells": int(margin_cells)}
-    return _followups(frame, _seed_lists(bounds), build, extra)
+    return _followups(frame, _seed_lists(bounds), noise.from_seeds, extra)
 
 
 def noise_inside_roi(
@@ -172,13 +167,10 @@ def noise_inside_roi(
         "max_range": max_range,
         "margin_cells": margin_cells,
     }
-    NoiseInsideROI.from_seeds(frame, [0], **options)
-
-    def build(values: list[int]) -> NoiseInsideROI:
-        return NoiseInsideROI.from_seeds(frame, values, **options)
-
+    noise = NoiseInsideROI.prepare(frame, **options)
+    noise.from_seeds([0])
     extra = {"clearance": float(clearance), "max_range": float(max_range)}
-    return _followups(frame, _seed_lists(bounds), build, extra)
+    return _followups(frame, _seed_lists(bounds), noise.from_seeds, extra)
 
 
 def _index_lists(frame: Frame, min_size: Any, max_size: Any) -> st.SearchStrategy[list[int]]:

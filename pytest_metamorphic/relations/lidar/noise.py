@@ -12,7 +12,12 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
-from pytest_metamorphic.lidar.followups.perturb import SEED_BITS, DropPoints, NoiseOutsideROI
+from pytest_metamorphic.lidar.followups.perturb import (
+    SEED_BITS,
+    DropPoints,
+    NoiseOutsideROI,
+    PreparedNoise,
+)
 from pytest_metamorphic.lidar.judging.scope import (
     ScopeLike,
     as_scope,
@@ -53,13 +58,16 @@ def _noise(n: NoiseSize, max_size: int) -> Any:
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         frame = _frame(frame)
-        NoiseOutsideROI.from_seeds(frame, [0])  # no ROI, empty frame: fail now
-        return st.sampled_from(sizes).flatmap(lambda size: _chunked_noise(frame, size))
+        noise = NoiseOutsideROI.prepare(frame)  # no ROI, empty frame: fail now
+        noise.from_seeds([0])
+        return st.sampled_from(sizes).flatmap(lambda size: _chunked_noise(frame, noise, size))
 
     return followup
 
 
-def _chunked_noise(frame: Frame, n: int) -> st.SearchStrategy[Followup]:
+def _chunked_noise(
+    frame: Frame, noise: PreparedNoise[NoiseOutsideROI], n: int
+) -> st.SearchStrategy[Followup]:
     """Exactly ``n`` noise points, drawn as ``_CHUNKS`` seeds of ``n / _CHUNKS`` points each.
 
     Hypothesis' choice budget holds about a thousand integers per test case, so one seed
@@ -72,8 +80,8 @@ def _chunked_noise(frame: Frame, n: int) -> st.SearchStrategy[Followup]:
 
     def make(values: list[int]) -> Followup:
         seeds = [v * size + j for v in values for j in range(size)][:n]
-        noise = NoiseOutsideROI.from_seeds(frame, seeds)
-        return Followup(noise.apply(frame), params={**noise.params(), "chunks": values})
+        points = noise.from_seeds(seeds)
+        return Followup(points.apply(frame), params={**points.params(), "chunks": values})
 
     return st.lists(st.integers(0, top), min_size=chunks, max_size=chunks).map(make)
 

@@ -17,6 +17,7 @@ from pytest_metamorphic.lidar.followups.perturb import (
     NoiseOutsideROI,
     PermutePoints,
     Perturbation,
+    PreparedNoise,
     RotateAboutSensor,
     seeded_uniforms,
 )
@@ -132,6 +133,61 @@ def test_sample_with_a_numpy_generator_is_reproducible():
         NoiseOutsideROI.sample(FRAME, 5, rng=np.random.RandomState(1))
     with pytest.raises(InvalidArgument, match="n="):
         NoiseOutsideROI.sample(FRAME, -1, rng=np.random.default_rng(1))
+
+
+def test_a_prepared_frame_gives_the_points_from_seeds_gives():
+    """prepare() is from_seeds() split at the frame: the same points, follow-up after
+    follow-up, for both kinds of noise and for numpy-drawn seeds."""
+    boxes = (Box((20, 0, -1), (4, 2, 1.5), yaw=0.3, label="car"),)
+    frame = _frame(boxes=boxes)
+    outside = NoiseOutsideROI.prepare(frame, margin_cells=2, max_range=80.0)
+    inside = NoiseInsideROI.prepare(frame, clearance=0.5)
+    assert isinstance(outside, PreparedNoise) and outside.noise_type is NoiseOutsideROI
+    for size in (0, 1, 10, 1000):
+        seeds = SEEDS[size : 2 * size]
+        expected = NoiseOutsideROI.from_seeds(frame, seeds, margin_cells=2, max_range=80.0)
+        assert outside.from_seeds(seeds).equals(expected)
+        assert inside.from_seeds(seeds).equals(
+            NoiseInsideROI.from_seeds(frame, seeds, clearance=0.5)
+        )
+    drawn = outside.sample(50, rng=np.random.default_rng(3))
+    assert drawn.equals(
+        NoiseOutsideROI.sample(
+            frame, 50, rng=np.random.default_rng(3), margin_cells=2, max_range=80.0
+        )
+    )
+    # What from_seeds() would raise for any seeds, prepare() raises at once.
+    with pytest.raises(InvalidArgument, match="has no ROI"):
+        NoiseOutsideROI.prepare(Frame(FRAME.cloud))
+    with pytest.raises(DataError, match="empty"):
+        NoiseInsideROI.prepare(Frame(PointCloud.empty(), roi=CROSS))
+    with pytest.raises(InvalidArgument, match="clearance"):
+        NoiseInsideROI.prepare(frame, clearance=-1.0)
+    with pytest.raises(InvalidArgument, match="seeds"):
+        outside.from_seeds([-1])
+
+
+def test_a_noise_strategy_prepares_its_frame_once(monkeypatch):
+    """Every follow-up of a source shares the frame's z and intensity ranges: one pass
+    over the sweep per strategy, not one per drawn follow-up."""
+    from hypothesis import given, settings
+
+    from pytest_metamorphic.lidar.followups.perturb import noise as noise_module
+    from pytest_metamorphic.strategies import noise_outside_roi
+
+    passes = []
+    real = noise_module.column_bounds
+    monkeypatch.setattr(noise_module, "column_bounds", lambda a: passes.append(1) or real(a))
+    strategy = noise_outside_roi(FRAME, n=5)
+    assert len(passes) == 1
+
+    @settings(max_examples=10, database=None)
+    @given(strategy)
+    def draw(followup):
+        assert len(followup.input.cloud) == len(FRAME.cloud) + 5
+
+    draw()
+    assert len(passes) == 1
 
 
 def test_noise_errors_name_the_problem():
