@@ -23,15 +23,24 @@ minimum is the least disturbed); the ratio of the medians is shown beside it. Th
 are in the page cache for both sides, and the fromfile side is a bare ``np.fromfile`` per
 file (the list of files it reads is made before timing).
 
-Where the time goes (idle 2-core machine, 2026-11-26, a 1.9 MB KITTI sweep): fromfile
-copies it from the page cache in 0.19 ms; ``read_bin`` adds the non-finite check (one
-pass, 0.085 ms: a reader that promises finite points must look at every value) and
-~0.08 ms of Python (opening and checking the file, building the cloud): 0.35 ms, ratio
-~0.55. A memory map would skip the copy (0.20 ms with the check), but the cloud would
-then change when the file is rewritten in place and the process dies of SIGBUS when it
-is truncated; readers keep value semantics and copy. PCD adds header parsing and, for
-non-xyzi layouts, one gather of the records; PointCloud2 adds rosbags' deserialisation
-and the copy out of the message's buffer (the cloud must not alias it).
+Where the time goes (idle 2-core machine, 2026-11-27, a 1.9 MB KITTI sweep read 200
+times in a row): fromfile copies it from the page cache in 0.09 ms; ``read_bin`` reads
+it straight into its array from the descriptor (``os.readv``, 0.066 ms: fromfile of an
+open file object went through C stdio, a fifth slower), then checks every value is
+finite (0.044 ms: a reader that promises finite points must look at each; a sum or dot
+product instead of ``isfinite`` saves at most 0.01 ms) and builds the cloud without
+re-checking the arrays it made (~0.02 ms of Python: opening, fstat, the cloud): 0.135 ms,
+ratio ~0.7 (0.6 before 2026-11-27). The copy and the check alone are ~0.84 of fromfile,
+so a copying reader cannot reach 0.9.
+
+A memory map would skip the copy, but measured here mapping a file and touching its pages
+once (the finite check) costs as much as copying it: 0.125-0.156 ms mapped against
+0.114-0.126 ms read and checked, since every page of the map is faulted in; and the cloud
+would change when the file is rewritten in place, and the process die of SIGBUS when it
+is truncated. So readers copy. PCD adds header parsing (~0.01 ms) and, for non-xyzi
+layouts, one gather of the records; on the small real files (0.3-1.1 MB) the fixed cost
+per file (~0.04 ms) is most of the gap. PointCloud2 adds rosbags' deserialisation and the
+copy out of the message's buffer (the cloud must not alias it).
 
     python bench/io_throughput.py [--repeat N]
 """

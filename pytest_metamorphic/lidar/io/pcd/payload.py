@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import os
 from pathlib import Path
 
@@ -13,6 +12,7 @@ from pytest_metamorphic.lidar.io import _lzf
 from pytest_metamorphic.lidar.io._common import (
     cloud_from_columns,
     cloud_from_records,
+    read_into,
 )
 from pytest_metamorphic.lidar.io.pcd.header import PcdHeader
 from pytest_metamorphic.lidar.model.cloud import PointCloud
@@ -48,33 +48,10 @@ def _read_binary(
         _need(available, size, f"{header.points} points of {step} bytes", path)
         _no_more(available, size, f"the {header.points} points", path)
     records = np.empty(header.points, dtype)
-    read = _read_into(fd, records.view(np.uint8))
+    read = read_into(fd, records.view(np.uint8))
     if read != size:  # the file shrank since fstat()
         raise DataError(f"expected {header.points} points, read {read // step}", path=path)
     return cloud_from_records(records, owned=True, **options)
-
-
-def _read_into(fd: int, buffer: np.ndarray) -> int:
-    """Fill a uint8 array from ``fd``; the bytes read (fewer only at the end of the file).
-
-    Straight into the array: ``np.fromfile`` goes through C stdio and is ~20% slower on
-    a 1 MB payload.
-    """
-    view = buffer.data  # a memoryview of the array's bytes
-    total = 0
-    while total < len(view):
-        count = _read_some(fd, view[total:])
-        if not count:
-            break
-        total += count
-    return total
-
-
-def _read_some(fd: int, view: memoryview) -> int:
-    if hasattr(os, "readv"):  # POSIX
-        return os.readv(fd, [view])
-    with io.FileIO(fd, "rb", closefd=False) as raw:  # Windows
-        return raw.readinto(view)
 
 
 def _read_bytes(fd: int, size: int) -> bytes:
