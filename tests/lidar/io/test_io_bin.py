@@ -106,6 +106,9 @@ def test_bin_errors(tmp_path):
     with pytest.raises(DataError, match=r"nan\.bin: 1 point\(s\) have NaN"):
         read_bin(nan)
     assert read_bin(nan, nonfinite="drop").dropped_nonfinite == 1
+    # The policy is checked before the file is opened: a typo is named, not a missing file.
+    with pytest.raises(InvalidArgument, match="nonfinite='keep' must be 'reject' or 'drop'"):
+        read_bin(tmp_path / "missing.bin", nonfinite="keep")
     empty = tmp_path / "empty.bin"
     empty.write_bytes(b"")
     assert len(read_bin(empty)) == 0
