@@ -269,18 +269,33 @@ class _InjectedPoints:
     def __len__(self) -> int:
         return len(self.points)
 
-    # Each subclass's classmethod ``from_seeds(frame, seeds, **its own options)``; declared
-    # this way because the options differ (a method here would make them incompatible).
-    from_seeds: ClassVar[Callable[..., Any]]
+    # Each subclass's classmethod ``prepare(frame, **its own options)``; declared this way
+    # because the options differ (a method here would make them incompatible).
+    prepare: ClassVar[Callable[..., PreparedNoise[Any]]]
+
+    @classmethod
+    def from_seeds(cls: type[_P], frame: Frame, seeds: ArrayLike, **options: Any) -> _P:
+        """The points for one integer seed each (deterministic).
+
+        Parameters
+        ----------
+        frame : Frame
+          Gives the z and intensity ranges, and the ROI unless ``roi`` is passed.
+        seeds : (n,) array_like of int in [0, 2**32)
+        **options
+          As for :meth:`prepare` (``roi``, ``max_range``, ``margin_cells``, ...). Many
+          follow-ups of one frame: ``prepare`` it once, then call its ``from_seeds``.
+        """
+        drawn: _P = cls.prepare(frame, **options).from_seeds(seeds)
+        return drawn
 
     @classmethod
     def sample(
         cls: type[_P], frame: Frame, n: int, *, rng: np.random.Generator, **options: Any
     ) -> _P:
         """``n`` points with seeds drawn from a numpy generator (campaign mode); ``options``
-        as for :meth:`from_seeds`."""
-        drawn: _P = cls.from_seeds(frame, _draw_seeds(n, rng), **options)
-        return drawn
+        as for :meth:`prepare`."""
+        return cls.from_seeds(frame, _draw_seeds(n, rng), **options)
 
     def apply(self, frame: Frame) -> Frame:
         """The frame with the points appended (ROI, boxes, pose and origin kept)."""
@@ -327,36 +342,6 @@ class NoiseOutsideROI(_InjectedPoints):
     kind = "noise_outside_roi"
 
     @classmethod
-    def from_seeds(
-        cls,
-        frame: Frame,
-        seeds: ArrayLike,
-        *,
-        roi: ROI | None = None,
-        max_range: float = 120.0,
-        margin_cells: int = 1,
-    ) -> NoiseOutsideROI:
-        """The noise for one integer seed per point (deterministic).
-
-        Parameters
-        ----------
-        frame : Frame
-          Gives the z and intensity ranges, and the ROI unless ``roi`` is passed.
-        seeds : (n,) array_like of int in [0, 2**32)
-        roi : ROI, optional
-          Defaults to ``frame.roi``.
-        max_range : float
-          The sensor's range in metres (HDL-64E: 120); (x, y) are uniform over the disk
-          of this radius minus the ROI and its ``margin_cells`` border. At most the ROI's
-          ``raster_range``.
-        margin_cells : int
-          Free cells kept between injected points and the ROI (>= 1).
-        """
-        return cls.prepare(
-            frame, roi=roi, max_range=max_range, margin_cells=margin_cells
-        ).from_seeds(seeds)
-
-    @classmethod
     def prepare(
         cls,
         frame: Frame,
@@ -365,10 +350,26 @@ class NoiseOutsideROI(_InjectedPoints):
         max_range: float = 120.0,
         margin_cells: int = 1,
     ) -> PreparedNoise[NoiseOutsideROI]:
-        """The frame's noise recipe for many follow-ups; options as for :meth:`from_seeds`.
+        """The frame's noise recipe, for :meth:`from_seeds` or many follow-ups.
 
-        Raises now what :meth:`from_seeds` would raise for any seeds: no ROI, a bad range
-        or margin, an empty frame.
+        Parameters
+        ----------
+        frame : Frame
+          Gives the z and intensity ranges, and the ROI unless ``roi`` is passed.
+        roi : ROI, optional
+          Defaults to ``frame.roi``.
+        max_range : float
+          The sensor's range in metres (HDL-64E: 120); (x, y) are uniform over the disk
+          of this radius minus the ROI and its ``margin_cells`` border. At most the ROI's
+          ``raster_range``.
+        margin_cells : int
+          Free cells kept between injected points and the ROI (>= 1).
+
+        Raises
+        ------
+        InvalidArgument, DataError
+          Now, what :meth:`from_seeds` would raise for any seeds: no ROI, a bad range or
+          margin, an empty frame.
         """
         region = _frame_roi(frame, roi)
         limit = _check_range(region, max_range, margin_cells)
@@ -383,32 +384,6 @@ class NoiseInsideROI(_InjectedPoints):
     kind = "noise_inside_roi"
 
     @classmethod
-    def from_seeds(
-        cls,
-        frame: Frame,
-        seeds: ArrayLike,
-        *,
-        roi: ROI | None = None,
-        obstacles: Sequence[Box] | None = None,
-        clearance: float = 1.0,
-        max_range: float = 120.0,
-        margin_cells: int = 1,
-    ) -> NoiseInsideROI:
-        """Points uniform over the ROI's interior cells that are ``clearance`` m from every box.
-
-        z and intensity follow the MR1 recipe (uniform over the frame's ranges).
-        ``obstacles`` defaults to the frame's ground-truth boxes.
-        """
-        return cls.prepare(
-            frame,
-            roi=roi,
-            obstacles=obstacles,
-            clearance=clearance,
-            max_range=max_range,
-            margin_cells=margin_cells,
-        ).from_seeds(seeds)
-
-    @classmethod
     def prepare(
         cls,
         frame: Frame,
@@ -419,7 +394,13 @@ class NoiseInsideROI(_InjectedPoints):
         max_range: float = 120.0,
         margin_cells: int = 1,
     ) -> PreparedNoise[NoiseInsideROI]:
-        """The frame's recipe for many follow-ups; options as for :meth:`from_seeds`."""
+        """The frame's recipe: points uniform over the ROI's interior cells that are
+        ``clearance`` m from every box.
+
+        z and intensity follow the MR1 recipe (uniform over the frame's ranges).
+        ``obstacles`` defaults to the frame's ground-truth boxes; other options as for
+        :meth:`NoiseOutsideROI.prepare`.
+        """
         region = _frame_roi(frame, roi)
         limit = _check_range(region, max_range, margin_cells)
         boxes = tuple(frame.boxes if obstacles is None else obstacles)
