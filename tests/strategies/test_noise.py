@@ -105,6 +105,42 @@ def test_a_thousand_points_generate_under_default_settings(data):
     assert len(np.unique(_injected(followup), axis=0)) == 1000  # distinct seeds, points
 
 
+def test_the_papers_largest_noise_in_two_followups_passes_the_health_checks():
+    """n=1000 with the engine's default two follow-ups per source: drawn as one seed per
+    point, the 2000 integers failed Hypothesis' large_base_example health check."""
+    calls = []
+
+    @settings(settings.get_profile("default"), max_examples=5, database=None, deadline=None)
+    @metamorphic(
+        relations=[
+            MetamorphicRelation(
+                "outside", lambda frame: noise_outside_roi(frame, n=1000), relations.equal()
+            ),
+            MetamorphicRelation(
+                "inside", lambda frame: noise_inside_roi(frame, n=1000), relations.equal()
+            ),
+        ],
+        source=st.just(street()),
+    )
+    def test(frame):
+        calls.append(len(frame.cloud))
+        return len(street().cloud)  # the same for every input: the relations hold
+
+    test()
+    assert len(street().cloud) + 1000 in calls
+    assert calls.count(len(street().cloud) + 1000) == 4 * calls.count(len(street().cloud))
+
+
+@given(data=st.data())
+@settings(max_examples=20, database=None)
+def test_an_exact_count_is_drawn_as_distinct_chunk_seeds(data):
+    n = data.draw(st.integers(1, 1000))
+    followup = data.draw(noise_inside_roi(street(), n=n))
+    points = followup.params["noise_inside_roi"].points
+    assert len(points) == n == followup.params["n"]
+    assert len(np.unique(points, axis=0)) == n
+
+
 @pytest.mark.slow
 @settings(settings.get_profile("default"), database=None, deadline=None)
 @given(data=st.data())

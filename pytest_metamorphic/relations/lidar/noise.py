@@ -13,7 +13,6 @@ from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import Matcher
 from pytest_metamorphic.lidar.followups.perturb import (
-    SEED_BITS,
     DropPoints,
     NoiseOutsideROI,
     PreparedNoise,
@@ -28,6 +27,7 @@ from pytest_metamorphic.lidar.judging.scope import (
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.relations.lidar._common import _check_size, _frame
 from pytest_metamorphic.strategies import noise_outside_roi
+from pytest_metamorphic.strategies._noise import chunked_seeds
 
 __all__ = [
     "DEFAULT_CLEARANCE",
@@ -45,7 +45,6 @@ DEFAULT_CLEARANCE = 5.0
 
 DEFAULT_NOISE = 1000
 """The paper's largest setting; shrinking then finds how few of them matter."""
-_CHUNKS = 10
 
 NoiseSize = int | Sequence[int] | None
 
@@ -68,22 +67,15 @@ def _noise(n: NoiseSize, max_size: int) -> Any:
 def _chunked_noise(
     frame: Frame, noise: PreparedNoise[NoiseOutsideROI], n: int
 ) -> st.SearchStrategy[Followup]:
-    """Exactly ``n`` noise points, drawn as ``_CHUNKS`` seeds of ``n / _CHUNKS`` points each.
+    """Exactly ``n`` noise points from chunk seeds (:func:`chunked_seeds`; these may repeat,
+    as they always have here, so that the relations draw what they drew before)."""
 
-    Hypothesis' choice budget holds about a thousand integers per test case, so one seed
-    per point cannot give two follow-ups of 1000 points. Shrinking simplifies the chunk
-    seeds; the engine's own reduction then finds the few points that matter.
-    """
-    chunks = min(n, _CHUNKS)
-    size = -(-n // chunks)
-    top = 2**SEED_BITS // size - 1
-
-    def make(values: list[int]) -> Followup:
-        seeds = [v * size + j for v in values for j in range(size)][:n]
+    def make(drawn: tuple[list[int], list[int]]) -> Followup:
+        seeds, chunks = drawn
         points = noise.from_seeds(seeds)
-        return Followup(points.apply(frame), params={**points.params(), "chunks": values})
+        return Followup(points.apply(frame), params={**points.params(), "chunks": chunks})
 
-    return st.lists(st.integers(0, top), min_size=chunks, max_size=chunks).map(make)
+    return chunked_seeds(n, unique=False).map(make)
 
 
 def _check_noise(n: NoiseSize, max_size: int) -> None:
