@@ -82,7 +82,7 @@ def _sizes(n: Any, min_size: Any, max_size: Any, default_max: int = 1000) -> tup
 
 
 CHUNKS = 10
-"""Exact-size noise is drawn as at most this many chunk seeds (:func:`chunked_seeds`)."""
+"""Exact-size noise is drawn as at most this many chunk seeds (``chunked_seeds``)."""
 
 
 def chunked_seeds(n: int, *, unique: bool = True) -> st.SearchStrategy[tuple[list[int], list[int]]]:
@@ -147,9 +147,9 @@ def noise_outside_roi(
       The source frame; its ROI is used unless ``roi`` is given.
     n : int, optional
       Exactly this many points (the paper used 10, 100 and 1000), drawn as at most 10
-      chunk seeds of consecutive point seeds (:func:`chunked_seeds`: one seed per point
-      would not fit two follow-ups of 1000 points in Hypothesis' choice budget). A
-      violation's points are then reduced by the engine, not by Hypothesis.
+      chunk seeds of consecutive point seeds (one seed per point would not fit two
+      follow-ups of 1000 points in Hypothesis' choice budget). A violation's points are
+      then reduced by the engine, not by Hypothesis.
     min_size, max_size : int, optional
       Otherwise, a number of points in this range, one seed per point, shrinking toward
       ``min_size`` by deleting points (default 1 to 1000, the paper's largest n).

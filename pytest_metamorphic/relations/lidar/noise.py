@@ -67,7 +67,7 @@ def _noise(n: NoiseSize, max_size: int) -> Any:
 def _chunked_noise(
     frame: Frame, noise: PreparedNoise[NoiseOutsideROI], n: int
 ) -> st.SearchStrategy[Followup]:
-    """Exactly ``n`` noise points from chunk seeds (:func:`chunked_seeds`; these may repeat,
+    """Exactly ``n`` noise points from chunk seeds (``chunked_seeds``; these may repeat,
     as they always have here, so that the relations draw what they drew before)."""
 
     def make(drawn: tuple[list[int], list[int]]) -> Followup:
