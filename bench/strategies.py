@@ -20,8 +20,8 @@ Where the time goes (cProfile and step timers on the idle 2-core machine, 2026-1
   temporaries, fresh memory on every call, their page faults were half of the lookup
   (with glibc's heap kept, ``MALLOC_TOP_PAD_``, the old code took 0.8 ms of its 1.7 in
   the perception pipeline).
-* noise n = 1000 (2026-11-27): 0.22 ms per follow-up, 0.35 ms for a one-off one (0.41
-  before). The frame's z and intensity ranges (one folded pass over the sweep,
+* noise n = 1000 (2026-11-27): 0.22-0.25 ms per follow-up, 0.35-0.38 ms for a one-off
+  one (0.41-0.44 before). The frame's z and intensity ranges (one folded pass over the sweep,
   ``column_bounds``, 0.11 ms) are the frame's, not the follow-up's: ``prepare`` computes
   them once per source, as the strategies and relations now do (they computed them three
   times for a strategy and its first draw). Per follow-up: hashing the seeds into
