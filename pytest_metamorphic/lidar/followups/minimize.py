@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,6 +53,9 @@ __all__ = [
     "changed_obstacles",
     "lost_obstacles",
 ]
+
+_P = TypeVar("_P", bound=NoiseOutsideROI | NoiseInsideROI | DropPoints | DuplicatePoints)
+_R = TypeVar("_R", bound="_ElementsReduction[Any]")
 
 
 def _boxes(value: Any, which: str) -> list[Box]:
@@ -170,33 +173,30 @@ def _point_line(x: float, y: float, z: float, intensity: float) -> str:
     )
 
 
-class InjectedPointsReduction:
-    """Points appended to a frame (MR1 noise), one element per point.
+class _ElementsReduction(Generic[_P]):
+    """A point perturbation reduced element by element: the rows of one of its arrays.
 
-    Parameters
-    ----------
-    perturbation : NoiseOutsideROI or NoiseInsideROI
-        Its ``points`` are (n, 4) float32 x, y, z, intensity.
+    Subclasses name the array (``_elements``); restricting keeps the chosen rows, in
+    order, in a perturbation of the same type, and remembers the source frame the
+    messages describe.
     """
 
-    def __init__(self, perturbation: NoiseOutsideROI | NoiseInsideROI) -> None:
+    def __init__(self, perturbation: _P) -> None:
         self.perturbation = perturbation
         self._source: Frame | None = None
 
-    @property
-    def points(self) -> NDArray[np.float32]:
-        """(n, 4) float32: the injected points."""
-        return self.perturbation.points
+    def _elements(self) -> NDArray[Any]:
+        raise NotImplementedError
 
     def __len__(self) -> int:
-        return len(self.perturbation.points)
+        return len(self._elements())
 
     def __repr__(self) -> str:
         return repr(self.perturbation)
 
-    def restrict(self, indices: Sequence[int]) -> InjectedPointsReduction:
+    def restrict(self: _R, indices: Sequence[int]) -> _R:
         chosen = np.asarray(list(indices), dtype=np.intp)
-        reduced = InjectedPointsReduction(type(self.perturbation)(self.points[chosen]))
+        reduced = type(self)(type(self.perturbation)(self._elements()[chosen]))
         reduced._source = self._source
         return reduced
 
@@ -206,6 +206,30 @@ class InjectedPointsReduction:
 
     def params(self) -> dict[str, Any]:
         return self.perturbation.params()
+
+    def _more(self, lines: list[str], limit: int) -> list[str]:
+        """``lines`` (the first ``limit`` elements) and a count of the rest."""
+        if len(self) > limit:
+            lines.append(f"... {len(self) - limit} other points")
+        return lines
+
+
+class InjectedPointsReduction(_ElementsReduction[NoiseOutsideROI | NoiseInsideROI]):
+    """Points appended to a frame (MR1 noise), one element per point.
+
+    Parameters
+    ----------
+    perturbation : NoiseOutsideROI or NoiseInsideROI
+        Its ``points`` are (n, 4) float32 x, y, z, intensity.
+    """
+
+    @property
+    def points(self) -> NDArray[np.float32]:
+        """(n, 4) float32: the injected points."""
+        return self.perturbation.points
+
+    def _elements(self) -> NDArray[np.float32]:
+        return self.points
 
     def ranking(self, source: Any, source_output: Any, followup_output: Any) -> list[int]:
         """Nearest to a lost (or changed) obstacle first, judged ones preferred."""
@@ -225,10 +249,7 @@ class InjectedPointsReduction:
         return _effect_lines(self.points, source_output, followup_output, self._source)
 
     def describe_elements(self, limit: int = 10) -> list[str]:
-        lines = [_point_line(*map(float, row)) for row in self.points[:limit]]
-        if len(self) > limit:
-            lines.append(f"... {len(self) - limit} other points")
-        return lines
+        return self._more([_point_line(*map(float, row)) for row in self.points[:limit]], limit)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -237,36 +258,16 @@ class InjectedPointsReduction:
         }
 
 
-class IndexEditReduction:
+class IndexEditReduction(_ElementsReduction[DropPoints | DuplicatePoints]):
     """Points dropped or repeated by index (:class:`DropPoints`, :class:`DuplicatePoints`)."""
-
-    def __init__(self, perturbation: DropPoints | DuplicatePoints) -> None:
-        self.perturbation = perturbation
-        self._source: Frame | None = None
 
     @property
     def indices(self) -> NDArray[np.intp]:
         """(n,) intp: the edited points' positions in the source cloud."""
         return self.perturbation.indices
 
-    def __len__(self) -> int:
-        return len(self.perturbation.indices)
-
-    def __repr__(self) -> str:
-        return repr(self.perturbation)
-
-    def restrict(self, indices: Sequence[int]) -> IndexEditReduction:
-        chosen = np.asarray(list(indices), dtype=np.intp)
-        reduced = IndexEditReduction(type(self.perturbation)(self.indices[chosen]))
-        reduced._source = self._source
-        return reduced
-
-    def apply(self, source: Frame) -> Frame:
-        self._source = source
-        return self.perturbation.apply(source)
-
-    def params(self) -> dict[str, Any]:
-        return self.perturbation.params()
+    def _elements(self) -> NDArray[np.intp]:
+        return self.indices
 
     def ranking(self, source: Any, source_output: Any, followup_output: Any) -> list[int]:
         if not isinstance(source, Frame) or len(self) == 0:
@@ -300,9 +301,7 @@ class IndexEditReduction:
                 lines.append(f"point #{index} {verb}: {_point_line(*map(float, row))}")
             else:
                 lines.append(f"point #{index} {verb}")
-        if len(self) > limit:
-            lines.append(f"... {len(self) - limit} other points")
-        return lines
+        return self._more(lines, limit)
 
     def to_json(self) -> dict[str, Any]:
         return {"type": type(self.perturbation).__name__, "indices": self.indices.tolist()}
