@@ -92,7 +92,7 @@ def quality(held_out: int) -> float:
         name = f"{held_out} held-out rendered, full={full_cloud}"
         print("\n".join(_quality_rows(name, score)))
         if full_cloud:
-            car_recall = score["car"].recall or 0.0  # type: ignore[index]
+            car_recall = score["car"].recall or 0.0
     if KITTI.is_dir():
         catalog = FrameCatalog(KITTI, roi=kitti_label_region())
         for full_cloud in (True, False):
@@ -123,6 +123,8 @@ def _shard(args: tuple[bool, str, int | None, int, int, int, int]) -> CampaignRe
 
 def _rate(k: int, n: int) -> str:
     rate = wilson(k, n)
+    if rate.low is None or rate.high is None:
+        return "  n/a (no pairs)"
     return f"{100 * k / n:5.1f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
 
 

@@ -43,7 +43,7 @@ import os
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -194,6 +194,7 @@ def run_ddmin(case: Case, system: Any, frame: Frame, source_output: Any, budget:
         budget=budget,
     )
     case.ddmin_seconds = time.perf_counter() - started
+    assert result is not None, "MR1 noise is reducible"
     case.ddmin, case.k, case.proven = trace, result.size, result.proven_minimal
 
 
@@ -268,9 +269,10 @@ def reduce_count_case(name: str, n: int, found: tuple[int, int], budget: int) ->
         budget=budget,
     )
     reducible = as_reducible(noise)
+    assert result is not None and reducible is not None, "MR1 noise is reducible"
     order = _orders(reducible, frame, source_output, followup_output)[0]
 
-    def fails(chosen: list[int]) -> bool:
+    def fails(chosen: Sequence[int]) -> bool:
         subset = reducible.restrict(sorted(chosen))
         followup = subset.apply(frame)
         return violates(source_output, system(followup), frame, followup)
@@ -373,20 +375,20 @@ def hypothesis_section(args: argparse.Namespace, frames: list[int]) -> str:
         print(f"no MR1 failure found for: {', '.join(missing)}")
     if not cases:
         sys.exit("no failures to reduce")
-    proven = sum(case.proven for case in cases) / len(cases)
+    proven_share = sum(case.proven for case in cases) / len(cases)
     ratios = [case.ratio for case in cases]
-    reached = sum(case.comparison()[3] for case in cases) / len(cases)
+    reached_share = sum(case.comparison()[3] for case in cases) / len(cases)
     elapsed = time.perf_counter() - began
     print(
-        f"\n{len(cases)} failures: proven 1-minimal {proven:.0%}, median call ratio "
+        f"\n{len(cases)} failures: proven 1-minimal {proven_share:.0%}, median call ratio "
         f"{statistics.median(ratios):.1f}x (min {min(ratios):.1f}x), median k "
         f"{statistics.median(case.k for case in cases):g}, Hypothesis reached k in "
-        f"{reached:.0%}, {elapsed:.0f} s"
+        f"{reached_share:.0%}, {elapsed:.0f} s"
     )
     return (
-        f"proven_minimal={proven:.3f} call_ratio={statistics.median(ratios):.2f} "
+        f"proven_minimal={proven_share:.3f} call_ratio={statistics.median(ratios):.2f} "
         f"median_k={statistics.median(case.k for case in cases):g} "
-        f"call_ratio_min={min(ratios):.2f} hypothesis_reached_k={reached:.3f} "
+        f"call_ratio_min={min(ratios):.2f} hypothesis_reached_k={reached_share:.3f} "
         f"cases={len(cases)} "
     )
 

@@ -62,7 +62,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI  # noqa: E402
-from pytest_metamorphic.lidar.model.obstacles import SIZE_PRIORS, Box  # noqa: E402
+from pytest_metamorphic.lidar.model.obstacles import SIZE_PRIORS, Box, Label  # noqa: E402
 from pytest_metamorphic.lidar.roi import ROI  # noqa: E402
 from pytest_metamorphic.lidar.synthetic import (  # noqa: E402
     BackgroundObject,
@@ -105,7 +105,7 @@ def per_example_ms(strategy: SearchStrategy[object], examples: int = 30) -> floa
 def street(roi: ROI) -> Scene:
     h = 1.73
 
-    def on_ground(x: float, y: float, label: str, yaw: float = 0.0) -> Obstacle:
+    def on_ground(x: float, y: float, label: Label, yaw: float = 0.0) -> Obstacle:
         size = SIZE_PRIORS[label].mean
         return Obstacle(Box((x, y, -h + size[2] / 2), size, yaw, label))
 

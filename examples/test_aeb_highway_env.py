@@ -17,6 +17,7 @@ Needs ``pip install 'pytest-metamorphic[highway-env]'``.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import pytest
 from hypothesis import Phase, settings
@@ -43,7 +44,7 @@ SPEED_MR = speed_relation(min_speed_kmh=15, max_speed_kmh=100)
 
 
 def aeb_in_highway_env(
-    make_controller: Callable[[], Callable], *, max_examples: int = 15, **options: object
+    make_controller: Callable[[], Callable], *, max_examples: int = 15, **options: Any
 ) -> Callable:
     @settings(max_examples=max_examples, database=None, deadline=None, **options)
     @metamorphic(source=SCENARIOS, relations=[SPEED_MR], followups=3)
@@ -64,7 +65,9 @@ def test_highway_env_run_catches_the_hard_coded_lane_width() -> None:
     )
     with pytest.raises(MetamorphicViolation, match="avoided collision stays avoided") as info:
         faulty()
-    (details,) = (d for name, d in info.value.verdict.details.items() if name.startswith("avoided"))
+    verdict = info.value.verdict
+    assert verdict is not None
+    (details,) = (d for name, d in verdict.details.items() if name.startswith("avoided"))
     # Not a physics excuse: full braking from the moment the pedestrian stepped onto the
     # road would have stopped the car.
     assert details["source_collided"] is False and details["followup_collided"] is True

@@ -23,6 +23,7 @@ to ``aeb_scenarios``.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import pytest
 from hypothesis import Phase, settings
@@ -49,7 +50,7 @@ SCENARIOS = aeb_scenarios(
 SPEED_MR = speed_relation(min_speed_kmh=15, max_speed_kmh=100)
 
 
-def aeb_test(make_controller: Callable[[], Callable], **options: object) -> Callable[[], None]:
+def aeb_test(make_controller: Callable[[], Callable], **options: Any) -> Callable[[], None]:
     """The metamorphic test of one AEB; a factory so the faulty variant reuses it."""
 
     @settings(max_examples=40, database=None, deadline=None, **options)
@@ -70,6 +71,7 @@ def test_speed_relation_catches_a_hard_coded_lane_width() -> None:
     with pytest.raises(MetamorphicViolation, match="avoided collision stays avoided") as info:
         faulty()
     verdict = info.value.verdict
+    assert verdict is not None
     # Not a physics excuse: full braking would have stopped the car in time.
     assert "avoidable: a hazard at" in verdict.explanation
     (details,) = (d for name, d in verdict.details.items() if name.startswith("avoided"))

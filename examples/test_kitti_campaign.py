@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Final
 
 import pytest
 
@@ -39,7 +40,7 @@ FOLLOWUPS = 50
 # ROI-first stacks: every obstacle they report is judged, as in the paper. With the default
 # scope (obstacles wholly inside the ROI) the mutant's rates fall to 0 / 2.7 / 15.7%: its
 # fault mostly hits obstacles the ROI's edge cuts, which that scope does not judge.
-SCOPE = "all"
+SCOPE: Final = "all"
 frames = FrameCatalog(KITTI, roi=kitti_label_region())
 reference = ReferencePerception()
 faulty = mutant("full_cloud_ground")  # Apollo's use_full_cloud: the paper's root cause

@@ -22,6 +22,8 @@ with a function ``Frame -> list[Box]`` calling it.
 
 from __future__ import annotations
 
+from typing import Final
+
 from pytest_metamorphic.core.campaign import campaign_test
 from pytest_metamorphic.lidar.campaign import mr1_campaign
 from pytest_metamorphic.lidar.model.frame import Frame
@@ -33,7 +35,7 @@ SOURCES = 200  # the paper used 1000 frames; bench/campaign.py runs the full pro
 # Apollo and the reference pipeline filter by ROI first: everything they report is on the
 # road, so every obstacle is judged, as in the paper. A detector that reports the whole
 # sweep keeps the default scope (obstacles wholly inside the ROI); see the README.
-SCOPE = "all"
+SCOPE: Final = "all"
 
 reference = ReferencePerception()
 faulty = mutant("count_scaled_radius")

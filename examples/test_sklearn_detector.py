@@ -44,7 +44,7 @@ from pytest_metamorphic.lidar.followups.insert import (
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.obstacles import Box, Label
 from pytest_metamorphic.relations.lidar import (
     beam_loss,
     lidar_relations,
@@ -102,6 +102,7 @@ def _box(points: Any) -> Box:
     length, width = (max(float(v), 0.1) for v in high - low)
     bottom, top = float(points[:, 2].min()), float(points[:, 2].max())
     height = max(top - bottom, 0.1)
+    label: Label
     if 2.5 < length < 6 and 1.2 < width < 2.5:
         label = "car"
     elif length < 1.2 and width < 1.2 and 1.0 < height < 2.1:
@@ -110,7 +111,7 @@ def _box(points: Any) -> Box:
         label = "unknown"
     return Box(
         (*middle, (bottom + top) / 2), (length, width, height), yaw, label, points=len(points)
-    )  # type: ignore[arg-type]
+    )
 
 
 def kitti_frames() -> st.SearchStrategy[Frame]:

@@ -6,7 +6,10 @@ an error in the system under test, bad input is the caller's fault).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # relations imports this module
+    from pytest_metamorphic.core.relations import Verdict
 
 __all__ = [
     "DataError",
@@ -53,6 +56,8 @@ class MetamorphicViolation(AssertionError):
     An ``AssertionError`` so that pytest and Hypothesis treat it as a test failure.
     The engine fills in what it knows about the violating pair: the (minimal) follow-up,
     both outputs and its full record (``None`` when the error was raised elsewhere).
+    ``verdict`` is the relation's :class:`~pytest_metamorphic.core.relations.Verdict` on
+    the (minimal) follow-up: its ``explanation`` and machine-readable ``details``.
     """
 
     followup: Any
@@ -60,7 +65,7 @@ class MetamorphicViolation(AssertionError):
     followup_output: Any
     record: Any
 
-    def __init__(self, message: str, *, relation: str = "", verdict: object = None) -> None:
+    def __init__(self, message: str, *, relation: str = "", verdict: Verdict | None = None) -> None:
         self.relation = relation
         self.verdict = verdict
         self.followup = self.source_output = self.followup_output = self.record = None

@@ -8,7 +8,7 @@ no longer needed, i.e. a misuse that now type-checks, into an error).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,7 @@ from pytest_metamorphic.core.campaign import (
     run_campaign,
 )
 from pytest_metamorphic.lidar.campaign import mr1_campaign
+from pytest_metamorphic.lidar.followups.faults import DropRings
 from pytest_metamorphic.lidar.io import read_cloud
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
@@ -138,3 +139,12 @@ except MetamorphicViolation as error:
     followup_input: Any = error.followup
     source_output: Any = error.source_output
     relation_name: str = error.relation
+    assert_type(error.verdict, Verdict | None)
+    if error.verdict is not None:
+        explanation: str = error.verdict.explanation
+        facts: Mapping[str, Any] = error.verdict.details
+
+# -- Follow-up transforms built by hand ------------------------------------------------------
+dead = DropRings([0, 5])  # any sequence of ring numbers, as documented
+assert_type(dead.rings, Sequence[int])
+DropRings(0)  # type: ignore[arg-type]

@@ -169,14 +169,14 @@ class DropRings:
     Parameters
     ----------
     rings : sequence of int
-        Ring numbers (0 = lowest beam), repeats ignored.
+        Ring numbers (0 = lowest beam), repeats ignored; kept as a sorted tuple.
     layout : BeamLayout
         The sensor, for :func:`derive_rings` when the cloud has no ring field.
     method : str
         How rings are found (see :func:`derive_rings`).
     """
 
-    rings: tuple[int, ...]
+    rings: Sequence[int]  # a list is fine; __post_init__ stores a sorted tuple
     layout: BeamLayout = HDL64E
     method: RingMethod = "auto"
 
