@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -98,6 +100,37 @@ def test_nonfinite_drop_removes_and_counts_and_fields_follow():
     assert cloud.dropped_nonfinite == 2
     assert cloud.fields["ring"].tolist() == [0, 2, 4]
     assert cloud.points[:, 0].tolist() == [0, 8, 16]
+
+
+# Every float32 a file can hold: NaN, infinities, subnormals and values whose squares
+# overflow (the finite check's fast path sums squares, so those must not read as bad).
+ANY_FLOAT32 = st.floats(width=32) | st.sampled_from([3.4e38, -3.4e38, 2e19, 1e-45, -0.0])
+
+
+@settings(max_examples=200)
+@given(
+    points=hnp.arrays(np.float32, st.tuples(st.integers(0, 40), st.just(4)), elements=ANY_FLOAT32)
+)
+def test_the_nonfinite_policy_sees_exactly_the_rows_isfinite_sees(points):
+    finite = np.isfinite(points).all(axis=1)
+    cloud = PointCloud(points, nonfinite="drop")
+    assert cloud.dropped_nonfinite == int((~finite).sum())
+    assert cloud.points.tobytes() == points[finite].tobytes()
+    if finite.all():
+        assert PointCloud(points).points.tobytes() == points.tobytes()
+        assert cloud.with_points(points).points.tobytes() == points.tobytes()
+    else:
+        with pytest.raises(DataError, match="NaN or infinite"):
+            PointCloud(points)
+
+
+def test_huge_finite_values_are_kept_without_a_warning():
+    # Their squares overflow float32: the fast path gives up and the values are checked
+    # one by one, silently (a user running with -W error must not see an overflow).
+    points = np.full((3, 4), 3e38, np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert PointCloud(points).points.tobytes() == points.tobytes()
 
 
 def test_float64_beyond_float32_range_meets_the_policy():
