@@ -331,7 +331,8 @@ def _all_finite(values: NDArray[np.floating]) -> bool:
     """
     if values.dtype in _DOT_DTYPES and values.flags.c_contiguous:
         flat = values.reshape(-1)
-        with np.errstate(over="ignore"):  # an overflow is only a reason to look closer
+        # An overflow, or a signalling NaN's "invalid", is only a reason to look closer.
+        with np.errstate(over="ignore", invalid="ignore"):
             total = float(np.dot(flat, flat))
         if math.isfinite(total):
             return True

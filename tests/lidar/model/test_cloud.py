@@ -124,13 +124,19 @@ def test_the_nonfinite_policy_sees_exactly_the_rows_isfinite_sees(points):
             PointCloud(points)
 
 
-def test_huge_finite_values_are_kept_without_a_warning():
-    # Their squares overflow float32: the fast path gives up and the values are checked
-    # one by one, silently (a user running with -W error must not see an overflow).
+def test_huge_values_and_signalling_nans_are_judged_without_a_warning():
+    # Squares of huge values overflow float32 and arithmetic on a signalling NaN (any bit
+    # pattern a file holds) raises "invalid": the fast path gives up and the values are
+    # checked one by one, silently (a user running with -W error must see no warning).
     points = np.full((3, 4), 3e38, np.float32)
+    signalling = points.copy()
+    signalling.view(np.uint32)[1, 2] = 0x7F800001
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert PointCloud(points).points.tobytes() == points.tobytes()
+        with pytest.raises(DataError, match=r"first at row 1"):
+            PointCloud(signalling)
+        assert PointCloud(signalling, nonfinite="drop").dropped_nonfinite == 1
 
 
 def test_float64_beyond_float32_range_meets_the_policy():
