@@ -50,12 +50,13 @@ from pytest_metamorphic.lidar.model.obstacles import (
 __all__ = [
     "IndexEditReduction",
     "InjectedPointsReduction",
+    "PointsReduction",
     "changed_obstacles",
     "lost_obstacles",
 ]
 
 _P = TypeVar("_P", bound=NoiseOutsideROI | NoiseInsideROI | DropPoints | DuplicatePoints)
-_R = TypeVar("_R", bound="_ElementsReduction[Any]")
+_R = TypeVar("_R", bound="PointsReduction[Any]")
 
 
 def _boxes(value: Any, which: str) -> list[Box]:
@@ -173,12 +174,12 @@ def _point_line(x: float, y: float, z: float, intensity: float) -> str:
     )
 
 
-class _ElementsReduction(Generic[_P]):
-    """A point perturbation reduced element by element: the rows of one of its arrays.
+class PointsReduction(Generic[_P]):
+    """A point perturbation as a :class:`~pytest_metamorphic.core.perturbation.Reducible`
+    set of elements, the rows of one of its arrays (what both adapters below share).
 
-    Subclasses name the array (``_elements``); restricting keeps the chosen rows, in
-    order, in a perturbation of the same type, and remembers the source frame the
-    messages describe.
+    Subclasses name the array (``_elements``). The source frame last given to
+    :meth:`apply` or ``ranking`` is kept for the messages (where the elements are).
     """
 
     def __init__(self, perturbation: _P) -> None:
@@ -195,16 +196,19 @@ class _ElementsReduction(Generic[_P]):
         return repr(self.perturbation)
 
     def restrict(self: _R, indices: Sequence[int]) -> _R:
+        """The same kind of reduction with only the elements at ``indices``, in order."""
         chosen = np.asarray(list(indices), dtype=np.intp)
         reduced = type(self)(type(self.perturbation)(self._elements()[chosen]))
         reduced._source = self._source
         return reduced
 
     def apply(self, source: Frame) -> Frame:
+        """The follow-up frame: the perturbation applied to ``source``."""
         self._source = source
         return self.perturbation.apply(source)
 
     def params(self) -> dict[str, Any]:
+        """The perturbation's parameters, as recorded with the follow-up."""
         return self.perturbation.params()
 
     def _more(self, lines: list[str], limit: int) -> list[str]:
@@ -214,7 +218,7 @@ class _ElementsReduction(Generic[_P]):
         return lines
 
 
-class InjectedPointsReduction(_ElementsReduction[NoiseOutsideROI | NoiseInsideROI]):
+class InjectedPointsReduction(PointsReduction[NoiseOutsideROI | NoiseInsideROI]):
     """Points appended to a frame (MR1 noise), one element per point.
 
     Parameters
@@ -258,7 +262,7 @@ class InjectedPointsReduction(_ElementsReduction[NoiseOutsideROI | NoiseInsideRO
         }
 
 
-class IndexEditReduction(_ElementsReduction[DropPoints | DuplicatePoints]):
+class IndexEditReduction(PointsReduction[DropPoints | DuplicatePoints]):
     """Points dropped or repeated by index (:class:`DropPoints`, :class:`DuplicatePoints`)."""
 
     @property
