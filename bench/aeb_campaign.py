@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
@@ -59,7 +60,10 @@ def verdicts(rows: list[CampaignRow]) -> list[tuple[str, str, tuple[tuple[float,
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data"))
+    parser.add_argument(
+        "--data",
+        default=os.environ.get("PYTEST_METAMORPHIC_DATA", str(ROOT.parent / "shared" / "data")),
+    )
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     if args.repeat < 1:

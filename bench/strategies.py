@@ -47,6 +47,7 @@ Where the time goes (cProfile and step timers on the idle 2-core machine, 2026-1
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -73,7 +74,8 @@ from pytest_metamorphic.lidar.synthetic import (  # noqa: E402
 )
 from pytest_metamorphic.strategies import noise_outside_roi  # noqa: E402
 
-APOLLO_POLY = ROOT.parent / "shared" / "data" / "apollo" / "hdmap_roi_filter" / "poly_mask_ut.poly"
+DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
+APOLLO_POLY = DATA / "apollo" / "hdmap_roi_filter" / "poly_mask_ut.poly"
 
 
 def timed(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
