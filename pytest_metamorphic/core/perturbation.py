@@ -62,7 +62,8 @@ class Reducible(Protocol):
 
 
 _ADAPTERS: dict[type, Callable[[Any], Reducible]] = {}
-# module of a perturbation -> module whose import registers adapters for it
+# package of perturbations (its modules and subpackages) -> module whose import registers
+# adapters for them
 _LAZY_ADAPTERS = {
     "pytest_metamorphic.lidar.followups.perturb": "pytest_metamorphic.lidar.followups.minimize"
 }
@@ -92,13 +93,27 @@ def _adapter_for(cls: type) -> Callable[[Any], Reducible] | None:
     return None
 
 
+def _lazy_registrar(cls: type) -> str | None:
+    """The module whose import registers an adapter for ``cls`` or one of its bases.
+
+    Matched by package: perturbations live in the package's modules (``perturb.noise``,
+    ``perturb.edits``), and a user's subclass in any module of theirs.
+    """
+    for base in cls.__mro__:
+        module = base.__module__
+        for package, registrar in _LAZY_ADAPTERS.items():
+            if module == package or module.startswith(package + "."):
+                return registrar
+    return None
+
+
 def as_reducible(value: Any) -> Reducible | None:
     """``value`` itself when it is :class:`Reducible`, its registered adapter, or None."""
     if isinstance(value, (str, bytes, Mapping)) or value is None:
         return None
     adapter = _adapter_for(type(value))
     if adapter is None:
-        lazy = _LAZY_ADAPTERS.get(type(value).__module__)
+        lazy = _lazy_registrar(type(value))
         if lazy is not None:
             importlib.import_module(lazy)
             adapter = _adapter_for(type(value))
