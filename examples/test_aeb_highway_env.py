@@ -26,6 +26,7 @@ from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.kinematics import SimulationResult
 from pytest_metamorphic.driving.scenario import Scenario
+from pytest_metamorphic.driving.simulators import Controller
 from pytest_metamorphic.relations.driving import speed_relation
 from pytest_metamorphic.strategies import aeb_scenarios, straight_roads
 
@@ -44,8 +45,8 @@ SPEED_MR = speed_relation(min_speed_kmh=15, max_speed_kmh=100)
 
 
 def aeb_in_highway_env(
-    make_controller: Callable[[], Callable], *, max_examples: int = 15, **options: Any
-) -> Callable:
+    make_controller: Callable[[], Controller], *, max_examples: int = 15, **options: Any
+) -> Callable[[], None]:
     @settings(max_examples=max_examples, database=None, deadline=None, **options)
     @metamorphic(source=SCENARIOS, relations=[SPEED_MR], followups=3)
     def check(scenario: Scenario) -> SimulationResult:

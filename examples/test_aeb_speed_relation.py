@@ -32,11 +32,12 @@ from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic.driving.aeb import mutant_fixed_lane, reference_controller
 from pytest_metamorphic.driving.kinematics import SimulationResult, simulate
 from pytest_metamorphic.driving.scenario import Scenario
+from pytest_metamorphic.driving.simulators import Controller
 from pytest_metamorphic.relations.driving import speed_relation
 from pytest_metamorphic.strategies import aeb_scenarios, straight_roads
 
 
-def my_aeb() -> Callable:
+def my_aeb() -> Controller:
     """A fresh instance of the AEB under test (replace with yours)."""
     return reference_controller()
 
@@ -50,7 +51,7 @@ SCENARIOS = aeb_scenarios(
 SPEED_MR = speed_relation(min_speed_kmh=15, max_speed_kmh=100)
 
 
-def aeb_test(make_controller: Callable[[], Callable], **options: Any) -> Callable[[], None]:
+def aeb_test(make_controller: Callable[[], Controller], **options: Any) -> Callable[[], None]:
     """The metamorphic test of one AEB; a factory so the faulty variant reuses it."""
 
     @settings(max_examples=40, database=None, deadline=None, **options)

@@ -81,7 +81,7 @@ def zeroing_route_length(trip: Trip) -> float:
 
 
 @st.composite
-def trips(draw: Callable) -> Trip:
+def trips(draw: st.DrawFn) -> Trip:
     city = draw(st.sampled_from(sorted(MAPS)))
     n = len(graph(city))
     return Trip(city, draw(st.integers(0, n - 1)), draw(st.integers(0, n - 1)))

@@ -247,7 +247,12 @@ def commonroad_scenario(
     result.add_objects(LaneletNetwork.create_from_lanelet_list([lanelet]))
 
     def obstacle(
-        oid: int, kind: Any, poses: list, velocities: list, length: float, width: float
+        oid: int,
+        kind: Any,
+        poses: list[tuple[float, float, float]],
+        velocities: list[float],
+        length: float,
+        width: float,
     ) -> Any:
         states = [
             CustomState(position=np.array([x, y]), orientation=h, velocity=v, velocity_y=0.0,

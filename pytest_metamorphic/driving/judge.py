@@ -63,8 +63,8 @@ _EXTRA_TIME = 5.0
 class _Walk(NamedTuple):
     """The dummy sampled over time: road coordinates and half its extents."""
 
-    s: NDArray
-    d: NDArray
+    s: NDArray[np.float64]
+    d: NDArray[np.float64]
     half_along: float
     half_across: float
 
@@ -117,13 +117,22 @@ class Judgement:
         return f"unavoidable: {when} still hits at {-self.gap / KMH:.1f} km/h ({self.standard})"
 
 
-def _overlap(a0: NDArray, a1: NDArray, b0: NDArray | float, b1: NDArray | float) -> NDArray:
+def _overlap(
+    a0: NDArray[np.float64],
+    a1: NDArray[np.float64],
+    b0: NDArray[np.float64] | float,
+    b1: NDArray[np.float64] | float,
+) -> NDArray[np.bool_]:
     """Open-interval overlap of ``[a0, a1]`` and ``[b0, b1]`` (element-wise)."""
     return (a0 < b1) & (b0 < a1)
 
 
 def _segments_cross_box(
-    x0: NDArray, y0: NDArray, x1: NDArray, y1: NDArray, box: tuple[float, float, float, float]
+    x0: NDArray[np.float64],
+    y0: NDArray[np.float64],
+    x1: NDArray[np.float64],
+    y1: NDArray[np.float64],
+    box: tuple[float, float, float, float],
 ) -> NDArray[np.bool_]:
     """Whether segments ``(x0, y0) -> (x1, y1)`` pass through the axis-aligned ``box``
     ``(s_low, s_high, d_low, d_high)`` (Liang-Barsky clipping, vectorised)."""
@@ -232,7 +241,7 @@ def judge_avoidable(
 
 def _crossed_first(
     scenario: Scenario,
-    front: NDArray,
+    front: NDArray[np.float64],
     walk: _Walk,
 ) -> bool:
     """Whether the pedestrian was clear beyond the car's path when the car reached its line."""
@@ -249,7 +258,7 @@ def _crossed_first(
 
 def _contacts(
     scenario: Scenario,
-    front: NDArray,
+    front: NDArray[np.float64],
     walk: _Walk,
 ) -> NDArray[np.bool_]:
     """Whether the car with its bumper at ``front`` overlaps the dummy, per sample."""
@@ -264,7 +273,7 @@ def _contacts(
 
 def _visible(
     scenario: Scenario,
-    front: NDArray,
+    front: NDArray[np.float64],
     walk: _Walk,
 ) -> NDArray[np.bool_]:
     """Line of sight from the bumper's middle to the dummy's centre or a corner, per sample."""

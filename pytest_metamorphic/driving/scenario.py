@@ -210,7 +210,9 @@ class PedestrianMotion:
             return math.sqrt(2 * distance / self.acceleration)
         return self.acceleration_time + (distance - self.acceleration_distance) / self.speed
 
-    def road_position(self, t: NDArray[np.float64] | float) -> tuple[NDArray, NDArray]:
+    def road_position(
+        self, t: NDArray[np.float64] | float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(s, d)`` at time(s) ``t``."""
         u = self.walked(t)
         return self.s0 + u * self.ds, self.d0 + u * self.dd

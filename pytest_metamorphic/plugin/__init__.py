@@ -13,7 +13,7 @@ import inspect
 import json
 from collections.abc import Generator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
@@ -34,12 +34,17 @@ from pytest_metamorphic.plugin.campaigns import (
 from pytest_metamorphic.plugin.options import OPTIONS, add_options, parse_options
 from pytest_metamorphic.reports.summary import SessionSummary, junit_properties
 
+if TYPE_CHECKING:  # imported when a replay or an artifact happens, not with the plugin
+    from pytest_metamorphic.reports.artifacts import Artifact, ArtifactWriter
+    from pytest_metamorphic.reports.replay import ReplayResult
+
 _SUMMARY = pytest.StashKey[SessionSummary]()
 _RECORDER = pytest.StashKey[Recorder]()
-_WRITER = pytest.StashKey[Any]()
-_REPLAYS = pytest.StashKey[list]()
-_REPLAY_RESULTS = pytest.StashKey[list]()
-_ARTIFACT_LIST = pytest.StashKey[list]()
+_WRITER: pytest.StashKey[ArtifactWriter] = pytest.StashKey()
+_REPLAYS: pytest.StashKey[list[Artifact]] = pytest.StashKey()  # config: --mt-replay's artifacts
+_ITEM_REPLAYS: pytest.StashKey[list[ReplayResult]] = pytest.StashKey()  # item: its replays
+_REPLAY_RESULTS: pytest.StashKey[list[dict[str, Any]]] = pytest.StashKey()  # config: all, as JSON
+_ARTIFACT_LIST: pytest.StashKey[list[tuple[str, str]]] = pytest.StashKey()  # (nodeid, folder)
 ARTIFACT_PROPERTY = "metamorphic_artifact"
 REPLAY_PROPERTY = "metamorphic_replay"
 
@@ -62,7 +67,7 @@ def pytest_configure(config: pytest.Config) -> None:
     start_cluster_early(config)
 
 
-def _load_replays(folders: tuple[Path, ...]) -> list[Any]:
+def _load_replays(folders: tuple[Path, ...]) -> list[Artifact]:
     if not folders:
         return []
     from pytest_metamorphic.core.errors import DataError
@@ -135,7 +140,7 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     names = list(inspect.signature(spec.function).parameters)[1:]
     fixtures = {name: pyfuncitem.funcargs[name] for name in names}
     results = [replay(artifact, spec, fixtures) for artifact in artifacts]
-    pyfuncitem.stash[_REPLAY_RESULTS] = results
+    pyfuncitem.stash[_ITEM_REPLAYS] = results
     failing = [result for result in results if result.still_fails]
     if failing:
         lines = [line for result in failing for line in result.lines()]
@@ -197,8 +202,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         if writer is not None:
             for folder in dict.fromkeys(writer.written):
                 item.user_properties.append((ARTIFACT_PROPERTY, str(folder)))
-        for result in item.stash.get(_REPLAY_RESULTS, []):
-            item.user_properties.append((REPLAY_PROPERTY, json.dumps(result.to_json())))
+        for replayed in item.stash.get(_ITEM_REPLAYS, []):
+            item.user_properties.append((REPLAY_PROPERTY, json.dumps(replayed.to_json())))
         result = item.stash.get(CAMPAIGN_RESULT, None)
         if result is not None:
             item.user_properties.append((CAMPAIGN_PROPERTY, json.dumps(result.to_json())))
@@ -226,7 +231,7 @@ class _SessionReporter:
         )
         for key, value in report.user_properties:
             if key == ARTIFACT_PROPERTY:
-                self.config.stash[_ARTIFACT_LIST].append((report.nodeid, value))
+                self.config.stash[_ARTIFACT_LIST].append((report.nodeid, str(value)))
             elif key == REPLAY_PROPERTY:
                 self.config.stash[_REPLAY_RESULTS].append(json.loads(str(value)))
         blob = next((v for k, v in report.user_properties if k == CAMPAIGN_PROPERTY), None)
@@ -252,8 +257,8 @@ class _SessionReporter:
         replays = self.config.stash[_REPLAY_RESULTS]
         if replays:
             terminalreporter.write_sep("=", "metamorphic replay")
-            for result in replays:
-                for line in result["lines"]:
+            for replayed in replays:
+                for line in replayed["lines"]:
                     terminalreporter.write_line(line)
         campaigns = self.config.stash[CAMPAIGNS]
         if campaigns:
@@ -263,8 +268,8 @@ class _SessionReporter:
                 terminalreporter.write_sep("=", f"campaign {name}")
                 for line in format_table(result):
                     terminalreporter.write_line(line)
-                folder = self.config.stash[OPTIONS].campaign_dir / slug(name)
-                terminalreporter.write_line(f"reports and logs: {folder}/")
+                reports = self.config.stash[OPTIONS].campaign_dir / slug(name)
+                terminalreporter.write_line(f"reports and logs: {reports}/")
 
     def pytest_sessionfinish(self) -> None:
         if hasattr(self.config, "workerinput"):

@@ -27,7 +27,7 @@ __all__ = [
 ]
 
 CAMPAIGN_RESULT = pytest.StashKey[Any]()
-CAMPAIGNS = pytest.StashKey[dict]()
+CAMPAIGNS = pytest.StashKey[dict[str, Any]]()  # campaign name: its merged result
 DASK_CLIENT = pytest.StashKey[Any]()
 STARTING_CLUSTER = pytest.StashKey[Any]()
 CAMPAIGN_PROPERTY = "metamorphic_campaign"

@@ -117,13 +117,14 @@ def draw_aeb_runs(path: str | os.PathLike[str], runs: Sequence[Run], *, title: s
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     figure, axes = plt.subplots(len(runs), 1, figsize=(12, 3.2 * len(runs)), squeeze=False)
     try:
         for ax, run in zip(axes[:, 0], runs, strict=True):
             _draw(ax, run)
         handles = [
-            plt.Line2D([], [], color=colour, lw=3, label=f"car: {stage}")
+            Line2D([], [], color=colour, lw=3, label=f"car: {stage}")
             for stage, colour in _STAGE_COLOURS.items()
         ]
         figure.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8)

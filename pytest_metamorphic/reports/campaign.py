@@ -170,7 +170,7 @@ def format_table(result: CampaignResult) -> list[str]:
     return lines
 
 
-def _example_line(example: dict, label: str) -> str:
+def _example_line(example: dict[str, Any], label: str) -> str:
     return (
         f"source {example['source']}, {label}={example['size']}, "
         f"follow-up {example['followup']}: "

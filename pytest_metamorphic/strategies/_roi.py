@@ -32,7 +32,7 @@ __all__ = ["junctions", "road_corridors", "rois", "simple_polygons"]
 _KINDS: tuple[RoadKind, ...] = ROAD_KINDS
 
 
-def _integers(draw: Any) -> Chooser:
+def _integers(draw: st.DrawFn) -> Chooser:
     """The layout chooser backed by Hypothesis: every choice shrinks toward ``low``."""
     return lambda low, high: draw(st.integers(low, high))
 
@@ -70,7 +70,7 @@ def _road_options(min_width: Any, max_width: Any, length: Any) -> dict[str, Any]
 
 
 @st.composite
-def _corridor(draw: Any, **options: Any) -> ROI:
+def _corridor(draw: st.DrawFn, /, **options: Any) -> ROI:
     return corridor_roi(_integers(draw), **options)
 
 
@@ -108,7 +108,7 @@ def road_corridors(
 
 
 @st.composite
-def _junction(draw: Any, **options: Any) -> ROI:
+def _junction(draw: st.DrawFn, /, **options: Any) -> ROI:
     return junction_roi(_integers(draw), **options)
 
 
@@ -133,7 +133,7 @@ def junctions(
 
 
 @st.composite
-def _star_polygon(draw: Any, **options: Any) -> ROI:
+def _star_polygon(draw: st.DrawFn, /, **options: Any) -> ROI:
     return star_roi(_integers(draw), **options)
 
 

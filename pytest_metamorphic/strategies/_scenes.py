@@ -87,7 +87,7 @@ _HEIGHTS = st.integers(*HEIGHT_STEPS)
 
 @st.composite
 def _scenes(
-    draw: Any,
+    draw: st.DrawFn,
     *,
     roi_strategy: st.SearchStrategy[ROI],
     obstacle_lists: st.SearchStrategy[list[ObstacleSpec]],

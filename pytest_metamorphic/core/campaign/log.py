@@ -353,7 +353,7 @@ def _lock_path(log: Path) -> Path:
     return log.with_name(f".{log.name}.lock")
 
 
-LogLike = Path | str | os.PathLike | LogFile | ShardLogs | None
+LogLike = Path | str | os.PathLike[str] | LogFile | ShardLogs | None
 
 
 def as_logs(log: LogLike) -> LogFile | ShardLogs | _NoLog:

@@ -25,6 +25,7 @@ from pytest_metamorphic.lidar.io._common import ZerosPolicy, check_policies
 from pytest_metamorphic.lidar.io.rosbag import BagIndex, index_bag
 from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 
 __all__ = ["FrameCatalog"]
 
@@ -145,7 +146,7 @@ class FrameCatalog:
             local = index - self.starts[position]
             cloud = source.read(local, **self.options)
             origin = f"{source.path} [{source.topic} #{local}]"
-            boxes: tuple = ()
+            boxes: tuple[Box, ...] = ()
         else:
             cloud = read_cloud(source, **self.options)
             origin = str(source)

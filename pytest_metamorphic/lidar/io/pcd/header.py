@@ -43,7 +43,10 @@ _CANONICAL = re.compile(
 #: Canonical layout lines (VERSION to COUNT, VIEWPOINT) that parsed as a valid header:
 #: their fields, sizes, types, counts and viewpoint. The frames of one sensor share them,
 #: and parsing them is most of the cost of reading a small file.
-_KNOWN_LAYOUTS: dict[tuple[bytes, bytes], tuple] = {}
+_KNOWN_LAYOUTS: dict[
+    tuple[bytes, bytes],
+    tuple[tuple[str, ...], tuple[int, ...], tuple[str, ...], tuple[int, ...], tuple[float, ...]],
+] = {}
 _MAX_KNOWN_LAYOUTS = 64
 _FRAME_ID = re.compile(r"#\s*frame_id (.*)")
 _TIMESTAMP = re.compile(r"#\s*timestamp (\S+)\s*")

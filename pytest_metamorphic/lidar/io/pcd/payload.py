@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ def _no_more(available: int, used: int, what: str, path: Path) -> None:
 
 
 def _read_binary(
-    fd: int, path: Path, header: PcdHeader, available: int, options: dict
+    fd: int, path: Path, header: PcdHeader, available: int, options: dict[str, Any]
 ) -> PointCloud:
     dtype = header.dtype()
     step = dtype.itemsize  # header.point_step, without summing it again
@@ -67,7 +68,7 @@ def _read_bytes(fd: int, size: int) -> bytes:
 
 
 def _read_compressed(
-    fd: int, path: Path, header: PcdHeader, available: int, options: dict
+    fd: int, path: Path, header: PcdHeader, available: int, options: dict[str, Any]
 ) -> PointCloud:
     _need(available, 8, "the compressed-size words", path)
     compressed, uncompressed = (int(v) for v in np.frombuffer(_read_bytes(fd, 8), "<u4"))
@@ -103,7 +104,7 @@ def _read_compressed(
 
 
 def _read_ascii(
-    fd: int, path: Path, header: PcdHeader, available: int, options: dict
+    fd: int, path: Path, header: PcdHeader, available: int, options: dict[str, Any]
 ) -> PointCloud:
     per_point = sum(header.counts)
     # Every value takes at least one character and one separator: bound before parsing.

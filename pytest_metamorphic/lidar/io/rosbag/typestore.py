@@ -24,7 +24,7 @@ def _typestore(ros1: bool) -> Any:
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    types: dict = {}
+    types: dict[str, Any] = {}
     for name, text in _VELODYNE_MSGS.items():
         types.update(get_types_from_msg(text, name))
     store.register(types)
