@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
-from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.core.files import field, inside
 
 __all__ = [
@@ -83,6 +83,7 @@ def encode_input(value: Any, folder: Path, name: str) -> dict[str, Any]:
             "pose": None if value.pose is None else value.pose.tolist(),
             "origin": value.source,
             "index": value.index,
+            "sensor": _sensor_key(value.sensor),
         }
         bag = _bag_origin(value.source)
         if bag is not None:
@@ -192,7 +193,27 @@ def _decode_frame(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
         pose=field(spec, "pose", (list, type(None)), where=name, path=record, default=None),
         source=field(spec, "origin", str, where=name, path=record, default=""),
         index=field(spec, "index", int, where=name, path=record, default=0),
+        sensor=_sensor(field(spec, "sensor", (str, type(None)), where=name, path=record, default=None), record),
     )
+
+
+def _sensor_key(sensor: Any) -> str | None:
+    """The catalogue key of a frame's sensor (a model of one's own is identified afresh
+    from the saved cloud on replay)."""
+    from pytest_metamorphic.lidar.model.sensors import SENSORS
+
+    return next((key for key, known in SENSORS.items() if known is sensor), None)
+
+
+def _sensor(key: str | None, record: Any) -> Any:
+    from pytest_metamorphic.lidar.model.sensors import sensor_named
+
+    if key is None:
+        return None
+    try:
+        return sensor_named(key)
+    except InvalidArgument:
+        raise DataError(f"{record}: unknown sensor {key!r}") from None
 
 
 def round_trips(value: Any) -> bool:

@@ -29,7 +29,8 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E
+from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 from pytest_metamorphic.lidar.model.obstacles import LABELS, Label
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.synthetic import (
@@ -201,22 +202,28 @@ def scenes(
 def scene_frames(
     scene_strategy: st.SearchStrategy[Scene] | None = None,
     *,
-    beams: BeamLayout = HDL64E,
+    beams: ScanPattern = HDL64E,
     seed: int = 0,
     range_noise: float | None = None,
     engine: CastEngine = "auto",
+    sensor: ScanPattern | str | None = None,
 ) -> st.SearchStrategy[Frame]:
     """Frames rendered from drawn scenes (default: :func:`scenes` with its defaults).
 
     Rendering is deterministic (``seed`` fixes the range noise), so a failing example
     replays exactly; each frame's ``boxes`` are its obstacles with point counts.
+    ``sensor`` (a model of :mod:`pytest_metamorphic.lidar.model.sensors` or its key, e.g.
+    ``"vlp16"``, ``"os1-128"``, ``"livox-mid40"``) renders with that sensor instead of
+    ``beams`` (the HDL-64E); the frames carry it as ``frame.sensor``.
     """
+    if sensor is not None:
+        beams = _sensor_argument(sensor)
     if scene_strategy is None:
         scene_strategy = scenes()
     if not isinstance(scene_strategy, st.SearchStrategy):
         raise InvalidArgument(f"scene_strategy must be a strategy of Scene, got {scene_strategy!r}")
-    if not isinstance(beams, BeamLayout):
-        raise InvalidArgument(f"beams must be a BeamLayout, got {beams!r}")
+    if not isinstance(beams, ScanPattern):
+        raise InvalidArgument(f"beams must be a sensor model (lidar.model.sensors), got {beams!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InvalidArgument(f"seed={seed!r} must be a non-negative int")
     if engine not in ("auto", "embree", "numpy"):
@@ -224,3 +231,10 @@ def scene_frames(
     return scene_strategy.map(
         functools.partial(render, beams=beams, seed=seed, range_noise=range_noise, engine=engine)
     )
+
+
+def _sensor_argument(sensor: ScanPattern | str) -> ScanPattern:
+    chosen = as_sensor(sensor)
+    if chosen is None:
+        raise InvalidArgument("sensor=None: pass a sensor model or a catalogue key")
+    return chosen

@@ -15,7 +15,8 @@ from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E
+from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
@@ -32,21 +33,25 @@ SourceFn = Callable[[np.random.Generator, int], Frame]
 DEFAULT_SYNTHETIC_SOURCES = 1000  # the paper's frame count
 
 
-def synthetic_frames(*, beams: BeamLayout = HDL64E, **scene_options: Any) -> SourceFn:
-    """Campaign sources: an independent random street scene per source, rendered.
+def synthetic_frames(
+    *, beams: ScanPattern | str = HDL64E, **scene_options: Any
+) -> SourceFn:
+    """Campaign sources: an independent random street scene per source, rendered with
+    ``beams`` (a sensor model of :mod:`pytest_metamorphic.lidar.model.sensors` or its key).
 
     ``scene_options`` go to :func:`~pytest_metamorphic.lidar.synthetic.layout.random_scene` (road
     kinds, obstacle counts and classes, clutter). The render's range noise is seeded from
     the source's own generator, so source ``i`` is the same frame in every run.
     """
-    if not isinstance(beams, BeamLayout):
-        raise InvalidArgument(f"beams must be a BeamLayout, got {type(beams).__name__}")
+    sensor = as_sensor(beams, "beams")
+    if sensor is None:
+        raise InvalidArgument("beams=None: pass a sensor model or a catalogue key")
     # Validate the options now rather than in the first source.
     random_scene(np.random.default_rng(0), **scene_options)
 
     def source(rng: np.random.Generator, index: int) -> Frame:
         scene = random_scene(rng, name=f"random-{index}", **scene_options)
-        return render(scene, beams=beams, seed=int(rng.integers(2**31)))
+        return render(scene, beams=sensor, seed=int(rng.integers(2**31)))
 
     return source
 

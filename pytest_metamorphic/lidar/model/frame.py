@@ -12,6 +12,8 @@ from numpy.typing import ArrayLike, NDArray
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.sensors.identify import as_sensor
+from pytest_metamorphic.lidar.model.sensors.layout import ScanPattern
 
 __all__ = ["Frame"]
 
@@ -34,6 +36,10 @@ class Frame:
       Where the frame came from: a file path, or ``bag [topic #i]``.
     index : int
       Position of the frame in its source sequence (0 for a single file).
+    sensor : ScanPattern or None
+      The sensor that recorded it (from :mod:`pytest_metamorphic.lidar.model.sensors`,
+      e.g. ``VLP16``; a catalogue key such as ``"vlp16"`` is accepted too); None: identified from the cloud when a relation
+      needs it (:func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`).
 
     Notes
     -----
@@ -47,6 +53,7 @@ class Frame:
     pose: NDArray[np.float64] | None = None
     source: str = ""
     index: int = 0
+    sensor: ScanPattern | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.cloud, PointCloud):
@@ -62,10 +69,11 @@ class Frame:
             raise InvalidArgument(f"index={self.index} must be >= 0")
         object.__setattr__(self, "index", int(self.index))
         object.__setattr__(self, "source", str(self.source))
+        object.__setattr__(self, "sensor", as_sensor(self.sensor))
 
     def with_cloud(self, cloud: PointCloud) -> Frame:
         """The same frame (ROI, boxes, pose, origin) around another cloud: a follow-up."""
-        return Frame(cloud, self.roi, self.boxes, self.pose, self.source, self.index)
+        return Frame(cloud, self.roi, self.boxes, self.pose, self.source, self.index, self.sensor)
 
     def __repr__(self) -> str:
         # Compact: Hypothesis prints it in every falsifying example.
@@ -79,6 +87,8 @@ class Frame:
             parts.append(f"roi={type(self.roi).__name__}")
         if self.pose is not None:
             parts.append("pose")
+        if self.sensor is not None:
+            parts.append(self.sensor.short_name)
         return f"Frame({'; '.join(parts)})"
 
 

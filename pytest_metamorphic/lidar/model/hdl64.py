@@ -11,22 +11,18 @@ The sensor spins at 5-20 Hz firing about 1.3 M points/s; at 10 Hz each laser fir
 times per revolution, an azimuth step of 0.1728° (KITTI records ~120k points per sweep).
 Range is up to 120 m with about 2 cm accuracy.
 
-Simplifications (documented, deliberate): every beam starts at the sensor origin (the real
-lasers sit up to ~2.6 cm sideways and ~21 cm vertically apart), all lasers fire at the same
-instant per azimuth step, and the vehicle does not move during a sweep.
+A data packet holds 12 blocks of 32 lasers, the upper and lower blocks firing together:
+6 firings, 1.04 degrees at 10 Hz. Other sensors are in
+:mod:`pytest_metamorphic.lidar.model.sensors`; :class:`BeamLayout` and :class:`Rays` live
+there and are re-exported here.
 """
 
 from __future__ import annotations
 
-import functools
-import math
-from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.model.sensors.layout import BeamLayout, Rays
 
 __all__ = ["HDL64E", "HDL64E_AZIMUTH_OFFSETS", "HDL64E_ELEVATIONS", "BeamLayout", "Rays"]
 
@@ -107,148 +103,12 @@ HDL64E_AZIMUTH_OFFSETS: NDArray[np.float64] = np.array([r for _, r in _CALIBRATI
 HDL64E_AZIMUTH_OFFSETS.setflags(write=False)
 
 
-@dataclass(frozen=True)
-class Rays:
-    """One sweep's rays from the sensor origin.
-
-    Attributes
-    ----------
-    directions : (r, 3) float64
-      Unit vectors, laser-major within each azimuth step.
-    ring : (r,) uint8
-      Laser index of each ray (sorted by elevation, 0 = lowest, as ROS ``ring``).
-    azimuth : (r,) float64
-      Azimuth of each ray in radians, counter-clockwise from +x.
-    """
-
-    directions: NDArray[np.float64]
-    ring: NDArray[np.uint8]
-    azimuth: NDArray[np.float64]
-
-    def __len__(self) -> int:
-        return len(self.directions)
-
-
-@dataclass(frozen=True)
-class BeamLayout:
-    """A spinning multi-beam LiDAR: per-laser elevations and azimuth offsets, step, range.
-
-    Parameters
-    ----------
-    name : str
-    elevations : (L,) float64
-      Radians, positive up.
-    azimuth_offsets : (L,) float64
-      Radians added to the firing azimuth of each laser (for the HDL-64E, the
-      calibration's ``rot_correction``; its sign convention does not matter for a
-      synthetic sweep, which covers all azimuths).
-    firings_per_revolution : int
-      Azimuth steps per sweep.
-    max_range, min_range : float
-      Returns outside ``[min_range, max_range]`` metres are dropped (HDL-64E: 120 m; the
-      0.9 m minimum is our assumption for returns blocked by the housing and vehicle).
-    range_noise : float
-      Standard deviation of the Gaussian range error in metres.
-    """
-
-    name: str
-    elevations: NDArray[np.float64] = field(repr=False)
-    azimuth_offsets: NDArray[np.float64] = field(repr=False)
-    firings_per_revolution: int = 2083
-    max_range: float = 120.0
-    min_range: float = 0.9
-    range_noise: float = 0.02
-
-    def __post_init__(self) -> None:
-        elevations = np.array(self.elevations, dtype=np.float64)
-        offsets = np.array(self.azimuth_offsets, dtype=np.float64)
-        if elevations.ndim != 1 or len(elevations) == 0:
-            raise InvalidArgument(
-                f"elevations must be a non-empty 1-D array, got {elevations.shape}"
-            )
-        if offsets.shape != elevations.shape:
-            raise InvalidArgument(
-                f"azimuth_offsets has shape {offsets.shape}, elevations {elevations.shape}"
-            )
-        if not (np.isfinite(elevations).all() and (np.abs(elevations) < math.pi / 2).all()):
-            raise InvalidArgument("elevations must be finite and within ±90 degrees (radians)")
-        if not np.isfinite(offsets).all():
-            raise InvalidArgument("azimuth_offsets must be finite")
-        steps = self.firings_per_revolution
-        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
-            raise InvalidArgument(f"firings_per_revolution={steps!r} must be a positive int")
-        if not (0 <= self.min_range < self.max_range and math.isfinite(self.max_range)):
-            raise InvalidArgument(
-                f"need 0 <= min_range < max_range < inf, got {self.min_range}, {self.max_range}"
-            )
-        if not (math.isfinite(self.range_noise) and self.range_noise >= 0):
-            raise InvalidArgument(f"range_noise={self.range_noise} must be >= 0")
-        elevations.setflags(write=False)
-        offsets.setflags(write=False)
-        object.__setattr__(self, "elevations", elevations)
-        object.__setattr__(self, "azimuth_offsets", offsets)
-
-    @property
-    def lasers(self) -> int:
-        return len(self.elevations)
-
-    @property
-    def azimuth_step(self) -> float:
-        """Radians between consecutive firings of one laser."""
-        return 2.0 * math.pi / self.firings_per_revolution
-
-    def rays(self, *, azimuth_range: tuple[float, float] | None = None) -> Rays:
-        """All rays of one sweep, or of the firings whose azimuth lies in a range.
-
-        Parameters
-        ----------
-        azimuth_range : (float, float), optional
-          ``(start, stop)`` radians; only firing azimuths ``start <= a < stop`` are kept
-          (before per-laser offsets). Use it for partial sweeps in fast tests.
-        """
-        if azimuth_range is None:
-            return self._full_sweep
-        return self._sweep(azimuth_range)
-
-    @functools.cached_property
-    def _full_sweep(self) -> Rays:
-        # Every render of a whole sweep casts the same 133k rays: build them once per
-        # layout (read-only, since every render shares them).
-        rays = self._sweep(None)
-        for array in (rays.directions, rays.ring, rays.azimuth):
-            array.setflags(write=False)
-        return rays
-
-    def __getstate__(self) -> dict[str, Any]:
-        # The cached sweep is rebuilt where it is needed, not shipped to workers.
-        state = dict(self.__dict__)
-        state.pop("_full_sweep", None)
-        return state
-
-    def _sweep(self, azimuth_range: tuple[float, float] | None) -> Rays:
-        firing = np.arange(self.firings_per_revolution) * self.azimuth_step
-        if azimuth_range is not None:
-            start, stop = (float(v) for v in azimuth_range)
-            if not (math.isfinite(start) and math.isfinite(stop) and start < stop):
-                raise InvalidArgument(f"azimuth_range={azimuth_range!r} needs start < stop")
-            wrapped = np.mod(firing - start, 2 * math.pi)
-            firing = firing[wrapped < stop - start]
-        # Rings number lasers from the lowest beam up, as drivers publish them.
-        ring_of_laser = np.empty(self.lasers, dtype=np.uint8)
-        ring_of_laser[np.argsort(self.elevations, kind="stable")] = np.arange(self.lasers)
-        azimuth = (firing[:, None] + self.azimuth_offsets[None, :]).ravel()
-        elevation = np.broadcast_to(self.elevations, (len(firing), self.lasers)).ravel()
-        ring = np.broadcast_to(ring_of_laser, (len(firing), self.lasers)).ravel()
-        cos_e = np.cos(elevation)
-        directions = np.stack(
-            [cos_e * np.cos(azimuth), cos_e * np.sin(azimuth), np.sin(elevation)], axis=1
-        )
-        return Rays(directions, np.ascontiguousarray(ring), azimuth)
-
-
 HDL64E = BeamLayout(
     name="Velodyne HDL-64E S3 (64e_s3-xiesc calibration), 10 Hz",
     elevations=HDL64E_ELEVATIONS,
     azimuth_offsets=HDL64E_AZIMUTH_OFFSETS,
+    packet_firings=6,
+    range_resolution=0.002,
+    detection=(0.10, 50.0),
 )
 """The HDL-64E at 10 Hz: 64 x 2083 = 133,312 rays per sweep, 120 m range, 2 cm noise."""

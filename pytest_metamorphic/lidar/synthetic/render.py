@@ -12,7 +12,8 @@ from numpy.typing import NDArray
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout, Rays
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E
+from pytest_metamorphic.lidar.model.sensors.layout import Rays, ScanPattern
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.synthetic.description import Scene
 from pytest_metamorphic.lidar.synthetic.meshes import SceneMesh, scene_mesh
@@ -24,7 +25,7 @@ __all__ = ["render"]
 def render(
     scene: Scene,
     *,
-    beams: BeamLayout = HDL64E,
+    beams: ScanPattern = HDL64E,
     seed: int = 0,
     range_noise: float | None = None,
     azimuth_range: tuple[float, float] | None = None,
@@ -35,8 +36,10 @@ def render(
     Parameters
     ----------
     scene : Scene
-    beams : BeamLayout
-      The sensor (default: the real HDL-64E layout, 133,312 rays).
+    beams : ScanPattern
+      The sensor (default: the real HDL-64E layout, 133,312 rays; any model of
+      :mod:`pytest_metamorphic.lidar.model.sensors`, e.g. ``VLP16``, ``OS1_128``,
+      ``LIVOX_MID40``).
     seed : int
       Seeds the range noise (numpy PCG64); the same seed gives the same cloud.
     range_noise : float, optional
@@ -50,15 +53,17 @@ def render(
     -------
     Frame
       ``cloud``: x, y, z, intensity (0-1) as float32, in firing order, with fields
-      ``ring`` (uint8, 0 = lowest beam) and ``instance`` (int32: obstacle index,
+      ``ring`` (uint8, 0 = lowest beam; absent for a scanner without rings) and ``instance`` (int32: obstacle index,
       :data:`GROUND_INSTANCE` or :data:`BACKGROUND_INSTANCE`); ``roi``: the scene's ROI;
       ``boxes``: every obstacle's box with ``points`` set to its number of returns;
-      ``source``: ``"synthetic:<scene name>"``.
+      ``source``: ``"synthetic:<scene name>"``; ``sensor``: ``beams``.
     """
     if not isinstance(scene, Scene):
         raise InvalidArgument(f"scene must be a Scene, got {type(scene).__name__}")
-    if not isinstance(beams, BeamLayout):
-        raise InvalidArgument(f"beams must be a BeamLayout, got {type(beams).__name__}")
+    if not isinstance(beams, ScanPattern):
+        raise InvalidArgument(
+            f"beams must be a sensor model (lidar.model.sensors), got {type(beams).__name__}"
+        )
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InvalidArgument(f"seed={seed!r} must be a non-negative int")
     sigma = beams.range_noise if range_noise is None else float(range_noise)
@@ -80,17 +85,18 @@ def render(
     points[:, :3] = directions * measured[:, None]
     points[:, 3] = np.clip(intensity, 0.0, 1.0)
     instance = mesh.face_instance[face]
-    cloud = PointCloud(
-        points,
-        fields={"ring": rays.ring[ray], "instance": instance.astype(np.int32)},
-        frame_id="velodyne",
-    )
+    fields = {"instance": instance.astype(np.int32)}
+    if beams.has_rings:
+        fields = {"ring": rays.ring[ray], **fields}
+    cloud = PointCloud(points, fields=fields, frame_id="velodyne")
     counts = np.bincount(instance[instance >= 0], minlength=len(scene.obstacles))
     boxes = tuple(
         Box(o.box.center, o.box.size, o.box.yaw, o.box.label, o.box.score, int(counts[i]))
         for i, o in enumerate(scene.obstacles)
     )
-    return Frame(cloud, roi=scene.roi, boxes=boxes, source=f"synthetic:{scene.name}")
+    return Frame(
+        cloud, roi=scene.roi, boxes=boxes, source=f"synthetic:{scene.name}", sensor=beams
+    )
 
 
 def _cos_incidence(
