@@ -37,13 +37,26 @@ class Followup:
 
     Transforms may yield plain inputs; yield ``Followup(value, params={...})`` when the
     parameters (a rotation angle, the injected points) should appear in failure messages
-    and reports.
+    and reports. A transform that cannot make a follow-up of a source (no object to
+    insert, no laser to drop) yields :meth:`not_applicable` with the reason: the system is
+    not run on it, and a relation that never applied is reported as having tested nothing,
+    never as passing.
     """
 
     input: Any
     params: Mapping[str, Any] = field(default_factory=dict)
+    skipped: str | None = None
+
+    @classmethod
+    def not_applicable(cls, source: Any, reason: str) -> Followup:
+        """No follow-up for ``source``: ``reason`` says why (shown in the report)."""
+        if not isinstance(reason, str) or not reason:
+            raise InvalidArgument(f"reason={reason!r} must be a non-empty string")
+        return cls(source, {"not_applicable": reason}, skipped=reason)
 
     def __repr__(self) -> str:
+        if self.skipped is not None:
+            return f"Followup.not_applicable({self.skipped!r})"
         params = f", params={dict(self.params)!r}" if self.params else ""
         return f"Followup({self.input!r}{params})"
 
@@ -61,11 +74,16 @@ class MetamorphicRelation:
         :class:`Followup` values carrying the transform parameters.
     relation : Relation
         How the follow-up output must relate to the source output.
+    same_input : callable(source_input, followup_input) -> bool, optional
+        Whether a follow-up input equals its source (a follow-up that changed nothing
+        tests nothing; the report counts them). Without it, only the very same object
+        counts as unchanged.
     """
 
     name: str
     followup: Callable[[Any], SearchStrategy[Any]]
     relation: Relation
+    same_input: Callable[[Any, Any], bool] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -79,6 +97,14 @@ class MetamorphicRelation:
                 else f"relation={self.relation!r} of {self.name!r} must be a Relation, "
                 "e.g. relations.equal() or relations.predicate(fn)"
             )
+        if self.same_input is not None and not callable(self.same_input):
+            raise InvalidArgument(f"same_input={self.same_input!r} of {self.name!r} must be callable")
+
+    def unchanged(self, source: Any, followup: Any) -> bool:
+        """Whether ``followup`` is ``source`` or, by :attr:`same_input`, equal to it."""
+        if followup is source:
+            return True
+        return bool(self.same_input(source, followup)) if self.same_input is not None else False
 
 
 @dataclass(frozen=True)

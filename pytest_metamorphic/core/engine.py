@@ -45,7 +45,13 @@ from pytest_metamorphic.core.errors import (
     SystemUnderTestCrash,
 )
 from pytest_metamorphic.core.reduction import Reduction, reduce_followup
-from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict, unjudged_changes
+from pytest_metamorphic.core.relations import (
+    CheckContext,
+    Relation,
+    Verdict,
+    judged_count,
+    unjudged_changes,
+)
 from pytest_metamorphic.core.search_phase import counts_as_new_case
 from pytest_metamorphic.core.stats import (
     DEFAULT_MINIMIZE_BUDGET,
@@ -154,6 +160,8 @@ class _Runner:
         whats = ["the source input"]
         for mr in self.mrs:
             for index, item in enumerate(case.followups.get(mr.name, ())):
+                if item.skipped is not None:
+                    continue
                 values.append(item.input)
                 whats.append(f"follow-up {index} of relation {mr.name!r}")
         calls = SystemCalls(_FixturedBatch(self.batch_fn, fixtures, self.batch), self._limit())
@@ -182,6 +190,12 @@ class _Runner:
             # .get: an explicit @example case may carry follow-ups for one relation only.
             items = case.followups.get(mr.name, ())
             for index, item in enumerate(items):
+                if item.skipped is not None:
+                    if stats:
+                        stats.not_applicable += 1
+                    if recorder is not None:
+                        recorder.reasons.setdefault(mr.name, item.skipped)
+                    continue
                 what = f"follow-up {index} of relation {mr.name!r}"
                 try:
                     output = self._run(item.input, fixtures, what, "followup", mr.name)
@@ -191,8 +205,8 @@ class _Runner:
                         stats.sut_calls += 1
                 context = CheckContext(case.source, item.input, item.params, index)
                 verdict = mr.relation.check(source_output, output, context)
-                if stats and unjudged_changes(verdict):
-                    stats.unjudged_changes += 1
+                if stats:
+                    _count_tested(stats, mr, case.source, item.input, verdict)
                 if not verdict.holds:
                     self._confirm_deterministic(case, source_output, fixtures, mr, stats)
                     if stats:
@@ -480,6 +494,21 @@ def metamorphic(
         return wrapped
 
     return decorate
+
+
+def _count_tested(
+    stats: Any, mr: MetamorphicRelation, source: Any, followup: Any, verdict: Verdict
+) -> None:
+    """What one follow-up tested: judged elements, an unchanged input, unjudged changes."""
+    if unjudged_changes(verdict):
+        stats.unjudged_changes += 1
+    judged = judged_count(verdict)
+    if judged is not None:
+        stats.counted += 1
+        stats.judged += judged
+        stats.judged_followups += judged > 0
+    if mr.unchanged(source, followup):
+        stats.unchanged += 1
 
 
 def _case_digest(case: MetamorphicCase | None) -> str:

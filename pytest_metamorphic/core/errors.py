@@ -18,6 +18,7 @@ __all__ = [
     "InvalidArgument",
     "MetamorphicError",
     "MetamorphicViolation",
+    "NothingTestedWarning",
     "NondeterministicSystemError",
     "OtherSystemError",
     "SystemTimeout",
@@ -129,3 +130,10 @@ class OtherSystemError(MetamorphicError):
     Resuming would blend the two systems' rates; start afresh, or pass
     ``resume="any-system"`` (``--mt-resume-any-system``) when the change is intended.
     """
+
+
+class NothingTestedWarning(UserWarning):
+    """A metamorphic relation ran but tested nothing in a whole test: no follow-up could
+    be made of any source, every follow-up equalled its source, or its checks judged no
+    element (no obstacle in scope). The test passed vacuously; ``--mt-strict-tested``
+    makes it fail instead."""

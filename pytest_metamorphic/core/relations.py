@@ -33,6 +33,7 @@ __all__ = [
     "predicate",
     "subset",
     "superset",
+    "judged_count",
     "unjudged_changes",
 ]
 
@@ -91,6 +92,23 @@ def unjudged_changes(verdict: Verdict) -> int:
         for part in details.values()
         if isinstance(part, Mapping) and isinstance(part.get("unjudged_changes"), int)
     )
+
+
+def judged_count(verdict: Verdict) -> int | None:
+    """How many elements (obstacles) a verdict judged (``details["judged"]``; combined
+    relations' parts summed), or None when the relation does not say."""
+    details = verdict.details
+    value = details.get("judged")
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    parts = [
+        part["judged"]
+        for part in details.values()
+        if isinstance(part, Mapping)
+        and isinstance(part.get("judged"), int)
+        and not isinstance(part.get("judged"), bool)
+    ]
+    return sum(parts) if parts else None
 
 
 class Relation:

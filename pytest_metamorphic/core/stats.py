@@ -13,7 +13,7 @@ from contextvars import ContextVar
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-__all__ = ["Recorder", "RelationStats", "current_recorder", "recording"]
+__all__ = ["Recorder", "RelationStats", "current_recorder", "nothing_tested", "recording"]
 
 DEFAULT_FOLLOWUPS = 2
 DEFAULT_MINIMIZE_BUDGET = 500
@@ -31,6 +31,12 @@ class RelationStats:
     ``unjudged_changes`` counts follow-ups whose output changed only outside what the
     relation judges (obstacles outside the ROI scope): information, never violations.
 
+    What was tested: ``judged`` sums the elements (obstacles) the checks judged, over the
+    ``counted`` follow-ups whose verdict says how many (``details["judged"]``), of which
+    ``judged_followups`` judged at least one; ``unchanged`` counts follow-ups equal to
+    their source; ``not_applicable`` the follow-ups a transform could not make (the
+    system is not run on them). See :func:`nothing_tested`.
+
     Counts are per distinct case: :attr:`Recorder.reruns` collects, in the same fields,
     the cases Hypothesis re-ran while shrinking or replaying a failure (``sources``: the
     re-run cases; ``sut_calls``: every system call they made, source ones included).
@@ -44,10 +50,42 @@ class RelationStats:
     nondeterministic: int = 0
     minimize_calls: int = 0
     unjudged_changes: int = 0
+    judged: int = 0
+    counted: int = 0
+    judged_followups: int = 0
+    unchanged: int = 0
+    not_applicable: int = 0
 
     def add(self, other: RelationStats) -> None:
         for name, value in asdict(other).items():
             setattr(self, name, getattr(self, name) + value)
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> RelationStats:
+        """From :func:`dataclasses.asdict` output (keys this version does not know ignored,
+        missing ones 0: reports of other versions merge)."""
+        known = {name: int(value) for name, value in data.items() if name in _FIELDS}
+        return cls(**known)
+
+
+_FIELDS = frozenset(RelationStats.__dataclass_fields__)
+
+
+def nothing_tested(stats: RelationStats, reason: str = "") -> str | None:
+    """Why a relation tested nothing over a whole test, or None when it tested something.
+
+    Nothing was tested when every follow-up was not applicable (``reason``: the
+    transform's), when every follow-up run equalled its source, or when the checks said
+    how many obstacles they judged and that was none.
+    """
+    ran = stats.followups
+    if ran == 0 and stats.not_applicable:
+        return f"no follow-up could be made ({reason or 'not applicable'})"
+    if ran and stats.unchanged == ran:
+        return f"every follow-up ({ran}) equalled its source"
+    if stats.counted and stats.counted == ran and stats.judged == 0:
+        return f"no obstacle (element) was judged in {ran} follow-up(s)"
+    return None
 
 
 @dataclass
@@ -68,6 +106,8 @@ class Recorder:
     source_calls: int = 0
     source_crashes: int = 0
     relations: dict[str, RelationStats] = field(default_factory=dict)
+    # Why a relation's transform could not make a follow-up (the first reason seen).
+    reasons: dict[str, str] = field(default_factory=dict)
     # Cases Hypothesis ran again while shrinking, explaining or replaying a failure
     # (core/search_phase.py): their system calls are cost, not new sources or violations.
     reruns: RelationStats = field(default_factory=RelationStats)
@@ -92,6 +132,7 @@ class Recorder:
             "sut_calls": self.sut_calls,
             "relations": {name: asdict(stats) for name, stats in self.relations.items()},
             "reruns": asdict(self.reruns),
+            "reasons": dict(self.reasons),
         }
 
 

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import inspect
 import json
+import warnings
 from collections.abc import Generator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_metamorphic.core.stats import Recorder, recording
+from pytest_metamorphic.core.errors import NothingTestedWarning
+from pytest_metamorphic.core.stats import Recorder, nothing_tested, recording
 from pytest_metamorphic.plugin.campaigns import (
     CAMPAIGN_PROPERTY,
     CAMPAIGN_RESULT,
@@ -172,7 +174,25 @@ def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
         recorder.on_violation = _ArtifactSink(options.artifacts, item, recorder)
     item.stash[_RECORDER] = recorder
     with recording(recorder):
-        return (yield)
+        result = yield
+    _report_nothing_tested(recorder, options.strict_tested)
+    return result
+
+
+def _report_nothing_tested(recorder: Recorder, strict: bool) -> None:
+    """A relation that tested nothing passed vacuously: say so (fail under strict)."""
+    __tracebackhide__ = True
+    lines = []
+    for name, stats in recorder.relations.items():
+        reason = nothing_tested(stats, recorder.reasons.get(name, ""))
+        if reason is not None:
+            lines.append(f"relation {name!r} tested nothing: {reason}")
+    if not lines:
+        return
+    message = "\n".join(lines)
+    if strict:
+        pytest.fail(message + "\n(--mt-strict-tested)", pytrace=False)
+    warnings.warn(NothingTestedWarning(message), stacklevel=2)
 
 
 class _ArtifactSink:

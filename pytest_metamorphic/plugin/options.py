@@ -30,6 +30,7 @@ class Options:
     timeout: float | None = None
     dask: str | None = None
     dask_batch: int | None = None
+    strict_tested: bool = False
 
 
 def add_options(parser: pytest.Parser) -> None:
@@ -131,6 +132,20 @@ def add_options(parser: pytest.Parser) -> None:
         help="sources per Dask task (ini: mt_dask_batch; default guided: up to 8, fewer "
         "towards the end)",
     )
+    group.addoption(
+        "--mt-strict-tested",
+        action="store_true",
+        default=None,
+        help="fail a metamorphic test in which a relation tested nothing (no follow-up "
+        "could be made, every follow-up equalled its source, or no obstacle was judged); "
+        "by default that is a warning (ini: mt_strict_tested)",
+    )
+    parser.addini(
+        "mt_strict_tested",
+        "fail tests in which a relation tested nothing (default: warn)",
+        type="bool",
+        default=False,
+    )
     parser.addini("mt_dask", "Dask scheduler address or local:N for campaigns", default=None)
     parser.addini("mt_dask_batch", "sources per Dask task", default=None)
     parser.addini("mt_timeout", "seconds one call of the system under test may take", default=None)
@@ -197,6 +212,7 @@ def parse_options(config: pytest.Config) -> Options:
         timeout=_timeout_option(config),
         dask=dask,
         dask_batch=dask_batch,
+        strict_tested=bool(config.getoption("mt_strict_tested") or config.getini("mt_strict_tested")),
     )
 
 

@@ -14,13 +14,14 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pytest_metamorphic.core.stats import Recorder, RelationStats
+from pytest_metamorphic.core.stats import Recorder, RelationStats, nothing_tested
 
 __all__ = ["PROPERTY", "SessionSummary", "junit_properties"]
 
 PROPERTY = "metamorphic"
 COLUMNS = ("sources", "followups", "sut_calls", "violations", "crashes")
 SCOPE_COLUMN = "unjudged_changes"  # shown only when some relation saw such changes
+TESTED_COLUMNS = ("judged", "unchanged", "not_applicable")  # what the follow-ups tested
 
 
 def junit_properties(recorder: Recorder) -> list[tuple[str, object]]:
@@ -30,8 +31,11 @@ def junit_properties(recorder: Recorder) -> list[tuple[str, object]]:
     properties.append(("mt.sut_calls", recorder.sut_calls))
     properties.append(("mt.source_crashes", recorder.source_crashes))
     for name, stats in recorder.relations.items():
-        for column in (*COLUMNS, "nondeterministic", SCOPE_COLUMN):
+        for column in (*COLUMNS, "nondeterministic", SCOPE_COLUMN, *TESTED_COLUMNS):
             properties.append((f"mt.{name}.{column}", getattr(stats, column)))
+        reason = nothing_tested(stats, recorder.reasons.get(name, ""))
+        if reason is not None:
+            properties.append((f"mt.{name}.nothing_tested", reason))
     return properties
 
 
@@ -43,6 +47,11 @@ class TestSummary:
     source_crashes: int = 0
     relations: dict[str, RelationStats] = field(default_factory=dict)
     reruns: RelationStats = field(default_factory=RelationStats)
+    reasons: dict[str, str] = field(default_factory=dict)
+
+    def nothing_tested(self, relation: str) -> str | None:
+        """Why ``relation`` tested nothing in this test, or None."""
+        return nothing_tested(self.relations[relation], self.reasons.get(relation, ""))
 
     @property
     def sut_calls(self) -> int:
@@ -67,22 +76,29 @@ class SessionSummary:
         test.source_calls += data["source_calls"]
         test.source_crashes += data["source_crashes"]
         for name, counts in data["relations"].items():
-            test.relations.setdefault(name, RelationStats()).add(RelationStats(**counts))
-        test.reruns.add(RelationStats(**data.get("reruns", {})))
+            test.relations.setdefault(name, RelationStats()).add(RelationStats.from_json(counts))
+        test.reruns.add(RelationStats.from_json(data.get("reruns", {})))
+        for name, reason in data.get("reasons", {}).items():
+            test.reasons.setdefault(name, str(reason))
         return True
 
     def rows(self) -> list[dict[str, Any]]:
         rows = []
         for test in self.tests.values():
             for name, stats in test.relations.items():
-                rows.append({"test": test.nodeid, "relation": name, **asdict(stats)})
+                reason = test.nothing_tested(name)
+                rows.append(
+                    {"test": test.nodeid, "relation": name, **asdict(stats), "nothing_tested": reason}
+                )
         return rows
 
     def format_table(self) -> list[str]:
         """The terminal summary: one line per (test, relation)."""
         rows = self.rows()
         scoped = any(row[SCOPE_COLUMN] for row in rows)
-        columns = (*COLUMNS, SCOPE_COLUMN) if scoped else COLUMNS
+        counted = any(row["counted"] for row in rows)
+        skipped = any(row["not_applicable"] for row in rows)
+        columns: tuple[str, ...] = COLUMNS
         header: tuple[str, ...] = (
             "test",
             "relation",
@@ -92,12 +108,19 @@ class SessionSummary:
             "violations",
             "crashes",
         )
-        header += ("out of scope",) if scoped else ()
-        body = [(row["test"], row["relation"], *(str(row[c]) for c in columns)) for row in rows]
+        if counted:
+            columns, header = (*columns, "judged"), (*header, "judged")
+        if skipped:
+            columns, header = (*columns, "not_applicable"), (*header, "n/a")
+        if scoped:
+            columns, header = (*columns, SCOPE_COLUMN), (*header, "out of scope")
+        body = [
+            (row["test"], row["relation"], *(self._cell(row, c) for c in columns)) for row in rows
+        ]
         for test in self.tests.values():
             if test.source_crashes:
                 line = (test.nodeid, "(source)", "", "", str(test.source_calls), "")
-                body.append((*line, str(test.source_crashes), *([""] if scoped else [])))
+                body.append((*line, str(test.source_crashes), *([""] * (len(header) - 7))))
         widths = [max(len(line[i]) for line in (header, *body)) for i in range(len(header))]
 
         def fmt(line: tuple[str, ...]) -> str:
@@ -125,12 +148,31 @@ class SessionSummary:
                 "sources and violations are distinct cases: Hypothesis's shrinking steps and "
                 "the final replay of a failure are not counted again"
             )
+        if counted:
+            lines.append(
+                "judged: obstacles (elements) the checks judged over all follow-ups; a "
+                "relation that judged none tested nothing"
+            )
+        if skipped:
+            lines.append("n/a: follow-ups the transform could not make (the system was not run)")
         if scoped:
             lines.append(
                 "out of scope: follow-ups whose output changed only outside what the relation "
                 "judges (obstacles outside the ROI scope); information, not violations"
             )
+        nothing = [row for row in rows if row["nothing_tested"]]
+        if nothing:
+            lines.append(f"NOTHING TESTED by {len(nothing)} relation(s) (a pass that proves nothing):")
+            lines += [f"  {row['test']} :: {row['relation']}: {row['nothing_tested']}" for row in nothing]
         return lines
+
+    @staticmethod
+    def _cell(row: dict[str, Any], column: str) -> str:
+        if column == "judged" and not row["counted"]:
+            return "-"  # the relation does not say what it judged
+        if column == "judged" and row["nothing_tested"]:
+            return f"{row[column]}!"
+        return str(row[column])
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -141,7 +183,10 @@ class SessionSummary:
                     "source_calls": test.source_calls,
                     "source_crashes": test.source_crashes,
                     "sut_calls": test.sut_calls,
-                    "relations": {name: asdict(s) for name, s in test.relations.items()},
+                    "relations": {
+                        name: {**asdict(s), "nothing_tested": test.nothing_tested(name)}
+                        for name, s in test.relations.items()
+                    },
                     "reruns": asdict(test.reruns),
                 }
                 for test in self.tests.values()

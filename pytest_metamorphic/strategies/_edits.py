@@ -2,9 +2,10 @@
 
 Each takes the source frame and returns a strategy of
 :class:`~pytest_metamorphic.core.engine.Followup`. When the frame offers nothing to edit
-(no object to remove, no free place for any object) the strategy gives the frame itself
-with ``params['remove_object']`` / ``params['insert_object']`` set to None, which the
-relations treat as holding.
+(no object to remove, no free place for any object, an unknown sensor) the strategy gives
+:meth:`Followup.not_applicable <pytest_metamorphic.core.cases.Followup.not_applicable>`
+with the reason: the system is not run, and a relation that never applied in a test is
+reported as having tested nothing.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from pytest_metamorphic.lidar.followups.insert import (
 )
 from pytest_metamorphic.lidar.judging.scope import ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
+from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.strategies._noise import _check_frame
 
@@ -50,14 +52,20 @@ def removed_objects(
     RemoveObject(Box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), margin)  # validates margin
     chosen = as_scope(scope)
 
+    proposer = "labels" if frame.boxes else "the reference pipeline's proposals (HDL-64E tuned)"
+
     def removals() -> st.SearchStrategy[Followup]:
         objects = removal_candidates(frame, scope=chosen)
         if not objects:
-            return st.just(Followup(frame, params={"remove_object": None}))
+            reason = (
+                f"no car, pedestrian or cyclist to remove among {proposer} "
+                f"({chosen.describe()})"
+            )
+            return st.just(Followup.not_applicable(frame, reason))
 
         def remove(index: int) -> Followup:
             removal = RemoveObject(objects[index], margin)
-            return Followup(removal.apply(frame), params=removal.params())
+            return Followup(removal.apply(frame), params={**removal.params(), "proposer": proposer})
 
         return st.integers(0, len(objects) - 1).map(remove)
 
@@ -70,18 +78,21 @@ def inserted_objects(
     *,
     objects: Sequence[ObjectTemplate] | None = None,
     min_returns: int = 30,
-    layout: BeamLayout = HDL64E,
+    layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
 ) -> st.SearchStrategy[Followup]:
     """The frame with one of ``objects`` (default: its own cars, pedestrians and cyclists
     of >= ``min_returns`` returns,
     :func:`~pytest_metamorphic.lidar.followups.insert.object_templates`)
     put on free ground judged by ``scope``, in clear view, re-cast with ``layout``'s beams
+    (default: the frame's sensor,
+    :func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`)
     (:class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`). Shrinks toward the first
-    object and the smallest move from where it was seen."""
+    object and the smallest move from where it was seen. Not applicable (and reported so)
+    when there is no object to insert or the frame's sensor is unknown."""
     frame = _check_frame(frame)
-    if not isinstance(layout, BeamLayout):
-        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
+    if layout is not None and not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None (the frame's)")
     chosen = as_scope(scope)
     templates = None if objects is None else tuple(objects)
     if templates is not None:
@@ -92,21 +103,31 @@ def inserted_objects(
             raise InvalidArgument("objects is empty: pass None to take the frame's own")
     if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
         raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
-    key = (templates, min_returns, chosen, id(layout))
-
-    def insert(template: ObjectTemplate, placement: Placement) -> Followup:
-        insertion = InsertObject.onto(frame, template, placement, layout=layout)
-        return Followup(insertion.apply(frame), params=insertion.params())
-
     def insertions() -> st.SearchStrategy[Followup]:
+        beams = layout if layout is not None else frame_sensor(frame).sensor
+        if not isinstance(beams, BeamLayout):
+            return st.just(Followup.not_applicable(frame, _no_beams(frame)))
+        key = (templates, min_returns, chosen, id(beams))
+
+        def insert(template: ObjectTemplate, placement: Placement) -> Followup:
+            insertion = InsertObject.onto(frame, template, placement, layout=beams)
+            return Followup(insertion.apply(frame), params=insertion.params())
+
         cache = _PLACES.setdefault(frame, {})
         if key not in cache:
             found = templates or object_templates(frame, min_returns=min_returns, scope=chosen)
-            places = [(t, free_placements(frame, t, scope=chosen, layout=layout)) for t in found]
+            places = [(t, free_placements(frame, t, scope=chosen, layout=beams)) for t in found]
             cache[key] = [(t, p) for t, p in places if p]
         options = cache[key]
         if not options:
-            return st.just(Followup(frame, params={"insert_object": None}))
+            reason = (
+                "no free place in scope for any of the given objects"
+                if templates
+                else "no object to insert: the frame has no labelled car, pedestrian or "
+                f"cyclist of >= {min_returns} returns; pass objects= (object_templates of "
+                "labelled recordings or rendered scenes)"
+            )
+            return st.just(Followup.not_applicable(frame, reason))
 
         def place(index: int) -> st.SearchStrategy[Followup]:
             template, places = options[index]
@@ -116,3 +137,13 @@ def inserted_objects(
 
     # Places are searched when the first example is drawn, not when the strategy is made.
     return st.deferred(insertions)
+
+
+def _no_beams(frame: Frame) -> str:
+    estimate = frame_sensor(frame)
+    if estimate.sensor is None:
+        return (
+            f"re-casting needs the frame's sensor, and it is not known ({estimate.describe()}); "
+            "pass sensor= to the Frame or FrameCatalog"
+        )
+    return f"re-casting needs a spinning multi-beam sensor, not a {estimate.sensor.short_name}"

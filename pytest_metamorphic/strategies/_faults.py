@@ -17,16 +17,15 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.engine import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.faults import (
-    PACKET_DEGREES,
     QUANTIZATION_RANGE,
     DropAzimuthBlock,
     DropRings,
     QuantizeRange,
-    derive_rings,
 )
 from pytest_metamorphic.lidar.followups.perturb import SEED_BITS
 from pytest_metamorphic.lidar.followups.weather import WEATHER_KINDS, Weather, WeatherKind
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
+from pytest_metamorphic.lidar.model.sensors import estimate_sensor, frame_sensor
 from pytest_metamorphic.strategies._noise import _check_frame
 
 __all__ = ["dead_beams", "lost_packets", "quantized_ranges", "weathered_frames"]
@@ -39,24 +38,51 @@ def _positive(value: Any, name: str) -> int:
 
 
 def dead_beams(
-    frame: Any, *, max_rings: int = 4, layout: BeamLayout = HDL64E
+    frame: Any, *, max_rings: int = 4, layout: BeamLayout | None = None
 ) -> st.SearchStrategy[Followup]:
-    """The frame without every return of 1 to ``max_rings`` lasers
-    (:class:`~pytest_metamorphic.lidar.followups.faults.DropRings`), shrinking toward fewer and
-    lower
-    rings. Raises at once when the frame's rings cannot be found."""
+    """The frame without every return of 1 to ``max_rings`` of its lasers
+    (:class:`~pytest_metamorphic.lidar.followups.faults.DropRings`), shrinking toward fewer
+    and lower rings.
+
+    The lasers are the frame's sensor's (``layout``, else
+    :func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`: a laser field, the
+    storage order, or a catalogue sensor fitted to the elevations), and only lasers that
+    have returns are drawn, never all of them. When they cannot be known (a non-repetitive
+    scanner, an unidentified sensor without a laser field) the follow-up is
+    :meth:`~pytest_metamorphic.core.cases.Followup.not_applicable`, with the reason.
+    """
     frame = _check_frame(frame)
-    if not isinstance(layout, BeamLayout):
-        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
-    limit = min(_positive(max_rings, "max_rings"), layout.lasers)
-    derive_rings(frame.cloud, layout=layout)
-    rings = st.lists(st.integers(0, layout.lasers - 1), min_size=1, max_size=limit, unique=True)
+    if layout is not None and not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None (the frame's)")
+    limit = _positive(max_rings, "max_rings")
 
-    def drop(chosen: list[int]) -> Followup:
-        fault = DropRings(tuple(chosen), layout)
-        return Followup(fault.apply(frame), params=fault.params())
+    def beams() -> st.SearchStrategy[Followup]:
+        estimate = frame_sensor(frame) if layout is None else estimate_sensor(
+            frame.cloud, sensor=layout
+        )
+        lasers = estimate.lasers
+        if estimate.rings is None or len(lasers) < 2:
+            why = (
+                f"{estimate.sensor.short_name} has no lasers to lose"
+                if estimate.sensor is not None and not estimate.sensor.has_rings
+                else f"the lasers cannot be known: {estimate.describe()}; pass sensor= to "
+                "the Frame or FrameCatalog"
+                if estimate.rings is None
+                else "the frame has returns of fewer than 2 lasers"
+            )
+            return st.just(Followup.not_applicable(frame, f"beam loss: {why}"))
+        rings = st.lists(
+            st.sampled_from(lasers), min_size=1, max_size=min(limit, len(lasers) - 1), unique=True
+        )
 
-    return rings.map(drop)
+        def drop(chosen: list[int]) -> Followup:
+            fault = DropRings(tuple(chosen), layout)
+            return Followup(fault.apply(frame), {**fault.params(), "sensor": estimate.describe()})
+
+        return rings.map(drop)
+
+    # The sensor is identified when the first example is drawn, not when the strategy is made.
+    return st.deferred(beams)
 
 
 def _roi_bearings(frame: Any) -> list[int]:
@@ -78,32 +104,61 @@ def _roi_bearings(frame: Any) -> list[int]:
 
 
 def lost_packets(
-    frame: Any, *, max_packets: int = 10, within_roi: bool = True
+    frame: Any,
+    *,
+    max_packets: int = 10,
+    within_roi: bool = True,
+    packet_degrees: float | None = None,
 ) -> st.SearchStrategy[Followup]:
     """The frame without 1 to ``max_packets`` consecutive packets (an azimuth block of
-    :data:`~pytest_metamorphic.lidar.followups.faults.PACKET_DEGREES` each), shrinking
-    toward one packet straight ahead.
+    ``packet_degrees`` each; default the frame's sensor's,
+    :attr:`~pytest_metamorphic.lidar.model.sensors.BeamLayout.packet_degrees`: 1.04 for
+    the HDL-64E, 4.8 for a VLP-16), shrinking toward one packet straight ahead.
 
     With ``within_roi`` (default) the block is centred on a bearing at which the frame's
     ROI holds returns (tenths of a degree): a packet lost where nothing is judged cannot
     fail the relation, and KITTI's camera-wedge ROI covers 80 of 360 degrees. Without
-    it, or without an ROI, the centre is any bearing.
+    it, or without an ROI, the centre is any bearing. Not applicable (with the reason)
+    when the sensor, and so its packets, are unknown, or its packets are not azimuth
+    blocks (a non-repetitive scanner).
     """
     frame = _check_frame(frame)
     if not isinstance(within_roi, bool):
         raise InvalidArgument(f"within_roi={within_roi!r} must be True or False")
-    centres = _roi_bearings(frame) if within_roi else _roi_bearings(None)
-    blocks = st.tuples(
-        st.sampled_from(centres), st.integers(1, _positive(max_packets, "max_packets"))
-    )
+    if packet_degrees is not None and not (
+        isinstance(packet_degrees, (int, float))
+        and not isinstance(packet_degrees, bool)
+        and 0 < packet_degrees < 36
+    ):
+        raise InvalidArgument(f"packet_degrees={packet_degrees!r} must be in (0, 36) degrees")
+    limit = _positive(max_packets, "max_packets")
 
-    def lose(block: tuple[int, int]) -> Followup:
-        centre, packets = block
-        width = PACKET_DEGREES * packets
-        fault = DropAzimuthBlock(math.radians(centre / 10 - width / 2), math.radians(width))
-        return Followup(fault.apply(frame), params={**fault.params(), "packets": packets})
+    def packets() -> st.SearchStrategy[Followup]:
+        degrees = packet_degrees
+        if degrees is None:
+            sensor = frame_sensor(frame).sensor
+            degrees = None if sensor is None else sensor.packet_degrees
+            if degrees is None:
+                why = (
+                    f"the sensor is not known ({frame_sensor(frame).describe()}); pass "
+                    "sensor= to the Frame or FrameCatalog, or packet_degrees="
+                    if sensor is None
+                    else f"a {sensor.short_name}'s packets are not azimuth blocks"
+                )
+                return st.just(Followup.not_applicable(frame, f"packet loss: {why}"))
+        centres = _roi_bearings(frame) if within_roi else _roi_bearings(None)
+        blocks = st.tuples(st.sampled_from(centres), st.integers(1, limit))
+        width_of_one = float(degrees)
 
-    return blocks.map(lose)
+        def lose(block: tuple[int, int]) -> Followup:
+            centre, count = block
+            width = width_of_one * count
+            fault = DropAzimuthBlock(math.radians(centre / 10 - width / 2), math.radians(width))
+            return Followup(fault.apply(frame), params={**fault.params(), "packets": count})
+
+        return blocks.map(lose)
+
+    return st.deferred(packets)
 
 
 def _step(value: Any, name: str) -> float:

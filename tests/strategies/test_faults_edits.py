@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.edit import RemoveObject
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E
 from pytest_metamorphic.lidar.followups.faults import PACKET_DEGREES, DropRings
 from pytest_metamorphic.lidar.followups.insert import InsertObject
 from pytest_metamorphic.lidar.model.frame import Frame
@@ -54,7 +55,7 @@ def test_edits_shrink_to_the_simplest_case() -> None:
     # One packet centred straight ahead.
     assert packet.params["packets"] == 1
     assert packet.params["lost_block_start_deg"] == pytest.approx(
-        360 - PACKET_DEGREES / 2, abs=1e-3
+        360 - HDL64E.packet_degrees / 2, abs=1e-3
     )
     coarse = find(mst.quantized_ranges(source), lambda f: True, settings=FIND)
     assert coarse.params["range_step_m"] == 0.05

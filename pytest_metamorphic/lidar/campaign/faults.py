@@ -30,6 +30,7 @@ from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E
+from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.lidar.model.obstacles import Box
 
 __all__ = [
@@ -65,16 +66,32 @@ _SEVERITY_LIMITS = {
 
 
 def dead_beams_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
-    """``severity`` random lasers of the HDL-64E return nothing."""
-    rings = rng.choice(HDL64E.lasers, size=severity, replace=False)
+    """``severity`` random lasers of the frame's sensor (of those with returns) return
+    nothing; raises when its lasers cannot be known or it has too few."""
+    estimate = frame_sensor(frame)
+    lasers = estimate.lasers
+    if len(lasers) <= severity:
+        raise InvalidArgument(
+            f"beam loss of {severity} lasers on {frame!r}: {estimate.describe()} has "
+            f"{len(lasers)} lasers with returns; pass the frame's sensor= or lower severities"
+        )
+    rings = rng.choice(lasers, size=severity, replace=False)
     fault = DropRings(tuple(int(r) for r in rings))
-    return Followup(fault.apply(frame), params=fault.params())
+    return Followup(fault.apply(frame), params={**fault.params(), "sensor": estimate.describe()})
 
 
 def lost_packets_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
-    """``severity`` consecutive packets lost, from a random azimuth."""
+    """``severity`` consecutive packets of the frame's sensor lost, from a random azimuth;
+    raises when the sensor's packets are unknown."""
+    sensor = frame_sensor(frame).sensor
+    degrees = None if sensor is None else sensor.packet_degrees
+    if degrees is None:
+        raise InvalidArgument(
+            f"packet loss on {frame!r}: the packet width of {frame_sensor(frame).describe()} "
+            "is not known; pass the frame's sensor="
+        )
     start = float(rng.uniform(0.0, 2 * math.pi))
-    fault = DropAzimuthBlock(start, math.radians(PACKET_DEGREES * severity))
+    fault = DropAzimuthBlock(start, math.radians(degrees * severity))
     return Followup(fault.apply(frame), params={**fault.params(), "packets": severity})
 
 

@@ -294,7 +294,7 @@ class OthersKept(Relation):
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         edit = _edit(context.params, self.name)
         if edit is None:  # the source had no object to edit: the follow-up is the source
-            return Verdict(True, self.name, "no object edited", {"edited": None})
+            return Verdict(True, self.name, "no object edited", {"edited": None, "judged": 0})
         source = as_boxes(source_output, "source")
         found = as_boxes(followup_output, "follow-up")
         region = edit.region()
@@ -309,6 +309,7 @@ class OthersKept(Relation):
         details = {
             "edited": region.describe(),
             "judged_far": len(rows),
+            "judged": len(rows),
             "lost": [source[i].describe() for i in lost],
             # Source indices: what a picture marks as lost, and what it shows as not judged.
             "blamed": lost,

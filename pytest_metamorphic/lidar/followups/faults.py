@@ -2,10 +2,13 @@
 a coarser range resolution.
 
 A real sensor loses whole lasers (a dead channel, a dirty window segment) and whole
-packets (an Ethernet drop takes one azimuth block of every laser). Both need to know
-which laser (ring) fired each point: recorded PCD/bag clouds usually carry a ``ring``
-field; KITTI's ``.bin`` sweeps do not, but store points laser by laser in firing order,
-from which :func:`derive_rings` recovers the ring exactly; rendered scenes carry it.
+packets (an Ethernet drop takes one azimuth block of every laser). Both need the sensor
+(:mod:`pytest_metamorphic.lidar.model.sensors`): which laser (ring) fired each point, and
+how wide a packet is. Recorded PCD/bag clouds usually carry a laser field (``ring``,
+``channel``, ...); KITTI's ``.bin`` sweeps do not, but store points laser by laser in
+firing order, from which the ring is recovered exactly; rendered scenes carry it; other
+clouds are matched to a catalogue sensor by their elevations, or the lasers are unknown
+and a relation that needs them says so.
 
 :class:`DropRings` is :class:`~pytest_metamorphic.core.perturbation.Reducible` over the
 missing rings: a violation reduces to the fewest beams whose loss still fails.
@@ -13,7 +16,6 @@ missing rings: a violation reduces to the fewest beams whose loss still fails.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
@@ -28,6 +30,16 @@ from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.sensors import (
+    RING_FIELDS,
+    estimate_sensor,
+    frame_sensor,
+    ring_field,
+)
+from pytest_metamorphic.lidar.model.sensors.identify import (
+    rings_from_elevation,
+    rings_from_scan_order,
+)
 from pytest_metamorphic.lidar.model.obstacles import (
     LABELS,
     Box,
@@ -50,7 +62,8 @@ __all__ = [
 
 RingMethod = Literal["auto", "field", "scan_order", "elevation"]
 PACKET_DEGREES = 1.04
-"""Azimuth covered by one HDL-64E data packet at 10 Hz (6 firings of 0.1728 degrees)."""
+"""Azimuth covered by one HDL-64E data packet at 10 Hz (6 firings of 0.1728 degrees);
+other sensors' packets: ``BeamLayout.packet_degrees``."""
 _METHODS = ("auto", "field", "scan_order", "elevation")
 
 
@@ -59,106 +72,80 @@ def _azimuth(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
     return np.mod(np.arctan2(xyz[:, 1].astype(np.float64), xyz[:, 0]), 2 * math.pi)
 
 
-def _elevation(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
-    planar = np.hypot(xyz[:, 0].astype(np.float64), xyz[:, 1])
-    return np.arctan2(xyz[:, 2].astype(np.float64), planar)
-
-
-def _rings_from_scan_order(xyz: NDArray[np.float32], lasers: int) -> NDArray[np.uint8] | None:
-    """Rings of a sweep stored laser by laser, or None when it is not stored that way.
-
-    Within one laser's revolution the azimuth in [0, 2π) grows; the next laser starts
-    over, so the azimuth drops by more than π. Exactly ``lasers`` runs whose median
-    elevations are ordered mean the layout is recognised; rings are numbered from the
-    lowest beam (0) up, as ROS drivers publish them, whichever end the file starts at.
-    """
-    if len(xyz) < 2 * lasers:
-        return None
-    starts = np.flatnonzero(np.diff(_azimuth(xyz)) < -math.pi) + 1
-    if len(starts) != lasers - 1:
-        return None
-    bounds = np.concatenate([[0], starts, [len(xyz)]])
-    elevation = _elevation(xyz)
-    medians = np.array([np.median(elevation[a:b]) for a, b in itertools.pairwise(bounds)])
-    steps = np.diff(medians)
-    if (steps < 0).all():
-        rank = np.arange(lasers)[::-1]  # stored top beam first (KITTI)
-    elif (steps > 0).all():
-        rank = np.arange(lasers)
-    else:
-        return None
-    return np.repeat(rank, np.diff(bounds)).astype(np.uint8)
-
-
-def _rings_from_elevation(xyz: NDArray[np.float32], layout: BeamLayout) -> NDArray[np.uint8]:
-    """The nearest beam of ``layout`` by elevation (exact for scans rendered with it)."""
-    order = np.argsort(layout.elevations, kind="stable")
-    sorted_elevations = layout.elevations[order]
-    elevation = _elevation(xyz)
-    right = np.clip(np.searchsorted(sorted_elevations, elevation), 1, len(order) - 1)
-    left = right - 1
-    nearer_left = (elevation - sorted_elevations[left]) < (sorted_elevations[right] - elevation)
-    return np.where(nearer_left, left, right).astype(np.uint8)
-
-
 def derive_rings(
-    cloud: PointCloud, *, layout: BeamLayout = HDL64E, method: RingMethod = "auto"
-) -> NDArray[np.uint8]:
-    """The ring (laser, 0 = lowest beam) of every point of ``cloud``.
+    cloud: PointCloud, *, layout: BeamLayout | None = None, method: RingMethod = "auto"
+) -> NDArray[np.int64]:
+    """The laser (ring) of every point of ``cloud``.
 
     Parameters
     ----------
     cloud : PointCloud
-    layout : BeamLayout
-        The sensor (default the HDL-64E): its number of lasers, and for ``"elevation"``
-        their elevations.
+    layout : BeamLayout, optional
+        The sensor, when known; otherwise it is identified
+        (:func:`~pytest_metamorphic.lidar.model.sensors.estimate_sensor`).
     method : {"auto", "field", "scan_order", "elevation"}
-        ``"field"``: the cloud's ``ring`` field. ``"scan_order"``: recovered from the
-        storage order of a sweep stored laser by laser (KITTI's ``.bin``; exact when it
-        applies). ``"elevation"``: the nearest beam of ``layout`` by elevation angle
-        (exact for scenes rendered with ``layout``; a real unit's own calibration differs:
-        on a shuffled KITTI sweep it is off by 2 rings at the median, 10 at most).
-        ``"auto"``: the first that applies, in that order.
+        ``"field"``: the cloud's laser field under any of the names drivers use
+        (``ring``, ``channel``, ``laser_id``, ...: the driver's own numbering).
+        ``"scan_order"``: recovered from the storage order of a sweep stored laser by
+        laser (KITTI's ``.bin``; exact when it applies). ``"elevation"``: the nearest beam
+        of the sensor by elevation angle (exact for scenes rendered with it; a real unit's
+        own calibration differs: on a shuffled KITTI sweep it is off by 2 rings at the
+        median, 10 at most). ``"auto"``: the first that applies, in that order, and
+        ``"elevation"`` only for a sensor given or identified with confidence.
 
     Returns
     -------
-    rings : (n,) uint8
+    rings : (n,) int64
 
     Raises
     ------
     InvalidArgument
-        The method does not apply to this cloud (no ring field; not stored laser by laser).
+        The method does not apply to this cloud, or the lasers cannot be known (no laser
+        field, not stored laser by laser, and no sensor fits the elevations): the message
+        says which.
     """
     if not isinstance(cloud, PointCloud):
         raise InvalidArgument(f"cloud must be a PointCloud, got {type(cloud).__name__}")
     if method not in _METHODS:
         raise InvalidArgument(f"method={method!r} must be one of {list(_METHODS)}")
-    if not isinstance(layout, BeamLayout):
-        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
-    if method in ("auto", "field") and "ring" in cloud.fields:
-        return np.asarray(cloud.fields["ring"]).astype(np.uint8)
+    if layout is not None and not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None")
+    if method == "auto":
+        estimate = estimate_sensor(cloud, sensor=layout)
+        if estimate.rings is None:
+            raise InvalidArgument(f"the lasers of this cloud cannot be known: {estimate.describe()}")
+        return estimate.rings
     if method == "field":
-        raise InvalidArgument("the cloud has no 'ring' field")
-    if method in ("auto", "scan_order"):
-        rings = _rings_from_scan_order(cloud.xyz, layout.lasers)
-        if rings is not None:
-            return rings
-        if method == "scan_order":
+        name = ring_field(cloud)
+        if name is None:
+            raise InvalidArgument(f"the cloud has no laser field (any of {list(RING_FIELDS)})")
+        return np.asarray(cloud.fields[name]).astype(np.int64)
+    sensor = layout if layout is not None else estimate_sensor(cloud).sensor
+    if method == "scan_order":
+        lasers = sensor.lasers if isinstance(sensor, BeamLayout) else HDL64E.lasers
+        rings = rings_from_scan_order(cloud.xyz, lasers)
+        if rings is None:
             raise InvalidArgument(
                 "the cloud is not stored laser by laser in firing order "
-                f"(expected {layout.lasers} revolutions of rising azimuth); use "
+                f"(expected {lasers} revolutions of rising azimuth); use "
                 "method='elevation' or a cloud with a ring field"
             )
-    return _rings_from_elevation(cloud.xyz, layout)
+        return rings
+    if not isinstance(sensor, BeamLayout):
+        raise InvalidArgument(
+            "method='elevation' needs the sensor: pass layout=, or a frame whose sensor is known"
+        )
+    return rings_from_elevation(cloud.xyz, sensor)
 
 
-def _ring_list(rings: Any, lasers: int) -> tuple[int, ...]:
+def _ring_list(rings: Any, lasers: int | None) -> tuple[int, ...]:
     try:
         values = [int(r) for r in rings]
     except (TypeError, ValueError):
         raise InvalidArgument(f"rings={rings!r} must be a sequence of ring numbers") from None
-    if any(isinstance(r, bool) for r in rings) or not all(0 <= r < lasers for r in values):
-        raise InvalidArgument(f"rings={rings!r} must be ring numbers in [0, {lasers - 1}]")
+    upper = 65535 if lasers is None else lasers - 1
+    if any(isinstance(r, bool) for r in rings) or not all(0 <= r <= upper for r in values):
+        raise InvalidArgument(f"rings={rings!r} must be ring numbers in [0, {upper}]")
     return tuple(sorted(set(values)))
 
 
@@ -169,21 +156,24 @@ class DropRings:
     Parameters
     ----------
     rings : sequence of int
-        Ring numbers (0 = lowest beam), repeats ignored; kept as a sorted tuple.
-    layout : BeamLayout
-        The sensor, for :func:`derive_rings` when the cloud has no ring field.
+        Laser numbers, repeats ignored; kept as a sorted tuple. With a laser field they
+        are the field's values (the driver's numbering: Velodyne's and nebula's count from
+        the lowest beam, Ouster's from the highest); otherwise 0 is the lowest beam.
+    layout : BeamLayout, optional
+        The sensor; default: the frame's (given, or identified from its cloud).
     method : str
         How rings are found (see :func:`derive_rings`).
     """
 
     rings: Sequence[int]  # a list is fine; __post_init__ stores a sorted tuple
-    layout: BeamLayout = HDL64E
+    layout: BeamLayout | None = None
     method: RingMethod = "auto"
 
     def __post_init__(self) -> None:
-        if not isinstance(self.layout, BeamLayout):
-            raise InvalidArgument(f"layout={self.layout!r} must be a BeamLayout")
-        object.__setattr__(self, "rings", _ring_list(self.rings, self.layout.lasers))
+        if self.layout is not None and not isinstance(self.layout, BeamLayout):
+            raise InvalidArgument(f"layout={self.layout!r} must be a BeamLayout or None")
+        lasers = None if self.layout is None else self.layout.lasers
+        object.__setattr__(self, "rings", _ring_list(self.rings, lasers))
 
     def __len__(self) -> int:
         return len(self.rings)
@@ -193,7 +183,15 @@ class DropRings:
 
     def kept(self, frame: Frame) -> NDArray[np.bool_]:
         """Which points of ``frame`` survive."""
-        rings = derive_rings(frame.cloud, layout=self.layout, method=self.method)
+        if self.layout is None and self.method == "auto":
+            estimate = frame_sensor(frame)
+            if estimate.rings is None:
+                raise InvalidArgument(
+                    f"the lasers of {frame!r} cannot be known: {estimate.describe()}"
+                )
+            rings = estimate.rings
+        else:
+            rings = derive_rings(frame.cloud, layout=self.layout, method=self.method)
         return ~np.isin(rings, self.rings)
 
     def apply(self, frame: Frame) -> Frame:
@@ -442,6 +440,7 @@ class CoveredObstaclesKept(Relation):
                 missing.append((index, before, len(rows), share))
         details = {
             "covered": len(covered),
+            "judged": len(covered),
             "missing": [boxes[i].describe() for i, *_ in missing],
             "scope": self.scope.describe(),
             # Source indices: what a picture marks as lost, and what it shows as not judged.

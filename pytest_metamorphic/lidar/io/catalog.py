@@ -12,10 +12,10 @@ import bisect
 import functools
 import glob
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -26,6 +26,7 @@ from pytest_metamorphic.lidar.io.rosbag import BagIndex, index_bag
 from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy, PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 
 __all__ = ["FrameCatalog"]
 
@@ -53,11 +54,17 @@ class FrameCatalog:
     cache_size : int
         Frames kept in memory, least recently loaded first out. Cached frames are shared,
         so their arrays are read-only.
+    sensor : ScanPattern or str, optional
+        The sensor that recorded them (a model of
+        :mod:`pytest_metamorphic.lidar.model.sensors` or its key, e.g. ``"vlp16"``),
+        attached to every frame; by default each frame's sensor is identified from its
+        cloud when a relation needs it.
 
     Notes
     -----
     Indexing is cheap (a sorted file list, or a bag's message index) and reports every
-    "nothing to load" problem at once; :meth:`load` reads one frame.
+    "nothing to load" problem at once; ``catalog[i]`` (or :meth:`load`) reads one frame,
+    ``catalog[a:b]`` a list of them, and iterating reads them in order.
     """
 
     def __init__(
@@ -70,8 +77,10 @@ class FrameCatalog:
         nonfinite: NonFinitePolicy = "reject",
         zeros: ZerosPolicy = "auto",
         cache_size: int = 4,
+        sensor: ScanPattern | str | None = None,
     ) -> None:
         check_policies(nonfinite, zeros)
+        self.sensor = as_sensor(sensor)
         if labels not in (True, False, "auto"):
             raise InvalidArgument(f"labels={labels!r} must be True, False or 'auto'")
         if isinstance(cache_size, bool) or not isinstance(cache_size, int) or cache_size < 1:
@@ -133,6 +142,27 @@ class FrameCatalog:
             raise InvalidArgument(f"index={index} out of range: {self!r}")
         return self._cached(int(index))
 
+    @overload
+    def __getitem__(self, index: int) -> Frame: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[Frame]: ...
+
+    def __getitem__(self, index: int | slice) -> Frame | list[Frame]:
+        """``catalog[i]`` (negative counts from the end) or ``catalog[a:b:c]``."""
+        if isinstance(index, slice):
+            return [self.load(i) for i in range(*index.indices(self.total))]
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+            raise InvalidArgument(f"catalog[{index!r}]: the index must be an int or a slice")
+        if -self.total <= index < 0:
+            index = self.total + int(index)
+        if not 0 <= index < self.total:
+            raise IndexError(f"catalog[{index}] out of range: {self!r}")
+        return self.load(index)
+
+    def __iter__(self) -> Iterator[Frame]:
+        return (self.load(i) for i in range(self.total))
+
     def __len__(self) -> int:
         return self.total
 
@@ -153,7 +183,9 @@ class FrameCatalog:
             files = _label_files(source) if self.labels else None
             boxes = tuple(read_kitti_labels(*files)) if files else ()
         _freeze(cloud)
-        return Frame(cloud, roi=self.roi, boxes=boxes, source=origin, index=index)
+        return Frame(
+            cloud, roi=self.roi, boxes=boxes, source=origin, index=index, sensor=self.sensor
+        )
 
 
 def _freeze(cloud: PointCloud) -> None:

@@ -22,7 +22,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import one_to_one
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes
+from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, box_support
 
 __all__ = [
     "SAME_OBSTACLE",
@@ -137,10 +137,15 @@ class MovedObstacles(Relation):
         # Judged in the follow-up's frame: the turned source boxes and the found ones.
         judged_expected = self.scope.judged(expected, context.followup_input)
         judged_found = self.scope.judged(found, context.followup_input)
-        missing = self._unmatched(expected, self._clear(expected, roi, judged_expected), found)
-        extra = self._unmatched(found, self._clear(found, roi, judged_found), expected)
+        cloud = getattr(context.followup_input, "cloud", None)
+        xyz = None if cloud is None else cloud.xyz
+        clear_expected = self._clear(expected, roi, judged_expected, xyz)
+        clear_found = self._clear(found, roi, judged_found, xyz)
+        missing = self._unmatched(expected, clear_expected, found)
+        extra = self._unmatched(found, clear_found, expected)
         details = {
             **moved,
+            "judged": len(clear_expected) + len(clear_found),
             "missing": [],
             "extra": [],
             "scope": self.scope.describe(),
@@ -206,12 +211,17 @@ class MovedObstacles(Relation):
             self._unmatched(found, outside2, expected)
         )
 
-    def _clear(self, boxes: Sequence[Box], roi: Any, judged: NDArray[np.bool_]) -> list[int]:
+    def _clear(
+        self, boxes: Sequence[Box], roi: Any, judged: NDArray[np.bool_], xyz: Any = None
+    ) -> list[int]:
+        # Support from Box.points, or counted in the moved cloud for boxes that carry no
+        # count (converters' and processes' boxes): otherwise they would never be judged.
+        support = box_support(boxes, xyz) if self.min_points else None
         chosen = []
         for index, box in enumerate(boxes):
             if not judged[index]:
                 continue
-            if box.label == "unknown" or (box.points or 0) < self.min_points:
+            if box.label == "unknown" or (support is not None and support[index] < self.min_points):
                 continue
             if roi is not None and self.boundary_margin > 0:
                 reach = math.hypot(box.size[0], box.size[1]) / 2.0 + self.boundary_margin

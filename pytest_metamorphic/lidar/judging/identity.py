@@ -117,6 +117,8 @@ class SameHeldPoints(Relation):
             cloud = getattr(context.source_input, "cloud", context.source_input)
             gone, new, moved = self._pair_by_points(cloud, source, followup, gone, new)
         details: dict[str, Any] = {
+            # Every obstacle of either output is judged (the points are the same set).
+            "judged": len(source) + len(followup),
             "changed_source": gone,
             "changed_followup": new,
             "same_not_identical": moved,

@@ -65,6 +65,7 @@ from pytest_metamorphic.lidar.model.obstacles import (
     Box,
     IoUMatcher,
     as_boxes,
+    box_support,
     bev_iou,
     unmatched_twins,
 )
@@ -246,6 +247,9 @@ class _Scoped(Relation):
         gone, new = unmatched_twins(outside, outside2)
         return {
             "scope": self.scope.describe(),
+            # What the check tested: the judged source obstacles (a subset or count of an
+            # empty set holds vacuously); equalities add the follow-up's (see _Equal).
+            "judged": int(source_judged.sum()),
             "judged_source": int(source_judged.sum()),
             "judged_followup": int(followup_judged.sum()),
             "unjudged_changes": len(gone) + len(new),
@@ -349,6 +353,7 @@ class _Equal(_Scoped):
             source_output, followup_output, context
         )
         details: dict[str, Any] = self._unjudged(source, followup, judged, followup_judged)
+        details["judged"] += int(followup_judged.sum())
         # A judged obstacle needs an identical twin among *all* obstacles on the other side.
         gone, _ = unmatched_twins([source[i] for i in np.flatnonzero(judged)], followup)
         new, _ = unmatched_twins([followup[j] for j in np.flatnonzero(followup_judged)], source)
@@ -395,8 +400,8 @@ class _Same(_Scoped):
             source_output, followup_output, context
         )
         if self.min_points:
-            judged &= _supported(source, self.min_points)
-            followup_judged &= _supported(followup, self.min_points)
+            judged &= _supported(source, self.min_points, context.source_input)
+            followup_judged &= _supported(followup, self.min_points, context.followup_input)
         return source, followup, judged, followup_judged
 
     def _note(self, details: dict[str, Any]) -> str:
@@ -423,6 +428,7 @@ class _Same(_Scoped):
             source_output, followup_output, context
         )
         details: dict[str, Any] = self._unjudged(source, followup, judged, followup_judged)
+        details["judged"] += int(followup_judged.sum())
         lost = self._unmatched(source, judged, followup)
         gained = self._unmatched(followup, followup_judged, source)
         details.update(changed_source=lost, changed_followup=gained)
@@ -439,9 +445,11 @@ class _Same(_Scoped):
         return Verdict(False, self.name, "; ".join(lines) + self._note(details), details)
 
 
-def _supported(boxes: list[Box], min_points: int) -> NDArray[np.bool_]:
-    """(n,) bool: supported by at least ``min_points`` returns, or support not reported."""
-    return np.array([box.points is None or box.points >= min_points for box in boxes], bool)
+def _supported(boxes: list[Box], min_points: int, frame: Any) -> NDArray[np.bool_]:
+    """(n,) bool: supported by at least ``min_points`` returns (``Box.points``, or counted
+    in the frame's cloud for boxes that do not say: a converter's or a process's)."""
+    cloud = getattr(frame, "cloud", None)
+    return box_support(boxes, None if cloud is None else cloud.xyz) >= min_points
 
 
 def obstacles_kept(*, matcher: Matcher | None = None, scope: ScopeLike = "roi") -> Relation:

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
+from hypothesis.strategies import SearchStrategy
+
+from pytest_metamorphic.core.engine import MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 
@@ -25,3 +30,17 @@ def _check_size(value: Any, name: str, *, allow_none: bool = False) -> None:
         return
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise InvalidArgument(f"{name}={value!r} must be a positive int")
+
+
+def _same_frame(source: Any, followup: Any) -> bool:
+    """Whether a follow-up frame holds exactly its source's cloud (and ROI): it tests nothing."""
+    if not (isinstance(source, Frame) and isinstance(followup, Frame)):
+        return False
+    return source.roi is followup.roi and source.cloud.equals(followup.cloud)
+
+
+def lidar_relation(
+    name: str, followup: Callable[[Any], SearchStrategy[Any]], relation: Relation
+) -> MetamorphicRelation:
+    """A LiDAR relation: follow-ups equal to their source are counted as testing nothing."""
+    return MetamorphicRelation(name, followup, relation, same_input=_same_frame)

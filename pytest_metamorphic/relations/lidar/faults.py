@@ -16,8 +16,8 @@ from pytest_metamorphic.lidar.followups.faults import (
     CoveredObstaclesKept,
 )
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.relations.lidar._common import _PROBE, _check_size, _frame
+from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
+from pytest_metamorphic.relations.lidar._common import _PROBE, _check_size, _frame, lidar_relation
 from pytest_metamorphic.strategies._faults import dead_beams, lost_packets, quantized_ranges
 
 __all__ = [
@@ -36,16 +36,18 @@ def beam_loss(
     min_share: float = 0.5,
     min_height_share: float = 0.8,
     min_detected: float = 0.5,
-    layout: BeamLayout = HDL64E,
+    layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
     name: str = "beams missing => well-covered obstacles kept",
 ) -> MetamorphicRelation:
     """Lasers that return nothing (dead channels) lose no obstacle they leave well covered.
 
-    The follow-up drops every return of 1 to ``max_rings`` lasers
-    (:func:`~pytest_metamorphic.strategies.dead_beams`; rings from the cloud's ``ring``
-    field, a KITTI sweep's storage order, or ``layout``'s elevations; shrinking toward
-    fewer and lower rings). A violation reduces to the fewest dead beams that still lose
+    The follow-up drops every return of 1 to ``max_rings`` of the frame's lasers
+    (:func:`~pytest_metamorphic.strategies.dead_beams`; the sensor is ``layout``, else the
+    frame's: its laser field under any driver's name, a KITTI sweep's storage order, or a
+    catalogue sensor fitted to the elevations; shrinking toward fewer and lower rings). A
+    frame whose lasers cannot be known (an unidentified sensor without a laser field, a
+    non-repetitive scanner) gets no follow-up, and the report says why. A violation reduces to the fewest dead beams that still lose
     the obstacle. The check is :class:`CoveredObstaclesKept`.
 
     Precondition (measured): the reference pipeline and the whole-scene detector keep every
@@ -58,8 +60,8 @@ def beam_loss(
     40 points per object, breaks the relation.
     """
     _check_size(max_rings, "max_rings")
-    if not isinstance(layout, BeamLayout):
-        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout")
+    if layout is not None and not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None (the frame's)")
     relation = CoveredObstaclesKept(
         min_points=min_points,
         min_share=min_share,
@@ -71,7 +73,7 @@ def beam_loss(
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         return dead_beams(_frame(frame), max_rings=max_rings, layout=layout)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)
 
 
 def packet_loss(
@@ -86,8 +88,9 @@ def packet_loss(
     name: str = "packets lost => well-covered obstacles kept",
 ) -> MetamorphicRelation:
     """Lost packets (an azimuth block of every laser) lose no obstacle they leave well
-    covered. The follow-up removes 1 to ``max_packets`` consecutive packets
-    (:data:`PACKET_DEGREES` each) centred on a drawn bearing, by default one at which the
+    covered. The follow-up removes 1 to ``max_packets`` consecutive packets (the frame's
+    sensor's packet width each: 1.04 degrees for the HDL-64E, 4.8 for a VLP-16; not
+    applicable, and reported so, when the sensor is unknown) centred on a drawn bearing, by default one at which the
     ROI holds returns (``within_roi``; :func:`~pytest_metamorphic.strategies.lost_packets`).
     The check is :class:`CoveredObstaclesKept`.
     """
@@ -103,7 +106,7 @@ def packet_loss(
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         return lost_packets(_frame(frame), max_packets=max_packets, within_roi=within_roi)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)
 
 
 def range_quantization(
@@ -139,4 +142,4 @@ def range_quantization(
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         return quantized_ranges(_frame(frame), steps=steps, min_step=min_step, max_step=max_step)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)

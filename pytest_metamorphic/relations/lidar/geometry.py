@@ -20,7 +20,7 @@ from pytest_metamorphic.lidar.judging.equivariance import (
     moved_obstacles,
 )
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
-from pytest_metamorphic.relations.lidar._common import _check_size, _frame
+from pytest_metamorphic.relations.lidar._common import _check_size, _frame, lidar_relation
 
 __all__ = [
     "MirroredObstacles",
@@ -113,7 +113,7 @@ def rotation_equivariance(
         return turns.map(turn)
 
     label = name or f"cloud and ROI turned ({angles}) => O turned"
-    return MetamorphicRelation(label, followup, relation)
+    return lidar_relation(label, followup, relation)
 
 
 def mirror_symmetry(
@@ -159,7 +159,7 @@ def mirror_symmetry(
         mirror = MirrorAcrossX()
         return st.just(mirror).map(lambda m: Followup(m.apply(frame), params=m.params()))
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)
 
 
 def translation_equivariance(
@@ -212,4 +212,4 @@ def translation_equivariance(
 
         return cells.map(shift)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)

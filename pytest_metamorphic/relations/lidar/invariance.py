@@ -16,7 +16,7 @@ from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.followups.perturb import DuplicatePoints
 from pytest_metamorphic.lidar.judging.identity import SameHeldPoints
 from pytest_metamorphic.lidar.judging.scope import judged_equal
-from pytest_metamorphic.relations.lidar._common import _check_size, _frame
+from pytest_metamorphic.relations.lidar._common import _check_size, _frame, lidar_relation
 from pytest_metamorphic.strategies import duplicated_points, permuted_points
 
 __all__ = ["PACKET_POINTS", "duplication_invariance", "permutation_invariance"]
@@ -64,7 +64,7 @@ def permutation_invariance(
         With a ``matcher``: obstacles supported by fewer returns (``Box.points``) are not
         judged (a network's detection of an object seen by 2 or 3 returns flips).
     """
-    return MetamorphicRelation(
+    return lidar_relation(
         name,
         lambda frame: permuted_points(_frame(frame)),
         _same_obstacles(identity, matcher, min_points),
@@ -117,4 +117,4 @@ def duplication_invariance(
             whole,
         )
 
-    return MetamorphicRelation(name, followup, same)
+    return lidar_relation(name, followup, same)

@@ -25,7 +25,7 @@ from pytest_metamorphic.lidar.judging.scope import (
     obstacles_kept,
 )
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.relations.lidar._common import _check_size, _frame
+from pytest_metamorphic.relations.lidar._common import _check_size, _frame, lidar_relation
 from pytest_metamorphic.strategies import noise_outside_roi
 from pytest_metamorphic.strategies._noise import chunked_seeds
 
@@ -121,7 +121,7 @@ def mr1_subset(
     """
     _check_noise(n, max_size)
     relation = obstacles_kept(matcher=matcher, scope=scope)
-    return MetamorphicRelation(name, _noise(n, max_size), relation)
+    return lidar_relation(name, _noise(n, max_size), relation)
 
 
 def mr1_cardinality(
@@ -137,7 +137,7 @@ def mr1_cardinality(
     each side are counted.
     """
     _check_noise(n, max_size)
-    return MetamorphicRelation(name, _noise(n, max_size), judged_count("<=", scope=scope))
+    return lidar_relation(name, _noise(n, max_size), judged_count("<=", scope=scope))
 
 
 def outside_noise_invariance(
@@ -160,7 +160,7 @@ def outside_noise_invariance(
     """
     _check_noise(n, max_size)
     relation = judged_equal(scope=scope, matcher=matcher, min_points=min_points)
-    return MetamorphicRelation(name, _noise(n, max_size), relation)
+    return lidar_relation(name, _noise(n, max_size), relation)
 
 
 def outside_removal(
@@ -232,4 +232,4 @@ def outside_removal(
         )
         return st.tuples(st.booleans(), picks).map(drop)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)

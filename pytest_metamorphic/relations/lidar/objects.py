@@ -16,8 +16,8 @@ from pytest_metamorphic.lidar.followups.insert import (
     object_templates,
 )
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
-from pytest_metamorphic.relations.lidar._common import _PROBE, _frame
+from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
+from pytest_metamorphic.relations.lidar._common import _PROBE, _frame, lidar_relation
 from pytest_metamorphic.strategies._edits import inserted_objects, removed_objects
 
 __all__ = ["object_insertion", "object_removal", "object_templates", "removal_candidates"]
@@ -53,7 +53,7 @@ def object_removal(
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         return removed_objects(_frame(frame), margin=margin, scope=scope)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)
 
 
 def object_insertion(
@@ -63,7 +63,7 @@ def object_insertion(
     min_points: int = 30,
     min_detected: float = 0.5,
     matcher: Matcher | None = None,
-    layout: BeamLayout = HDL64E,
+    layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
     name: str = "an object inserted => it is detected and the others kept",
 ) -> MetamorphicRelation:
@@ -76,9 +76,13 @@ def object_insertion(
     with :class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`: on free ground judged by
     ``scope`` and in clear view
     (:func:`~pytest_metamorphic.lidar.followups.insert.free_placements`),
-    re-projected onto ``layout``'s beams, hiding what it stands in front of. Shrinking goes
-    toward the first object and the smallest move from where it was seen; a violation
-    reduces to the fewest inserted returns that still fail.
+    re-projected onto ``layout``'s beams (default: the frame's sensor), hiding what it
+    stands in front of. Shrinking goes toward the first object and the smallest move from
+    where it was seen; a violation reduces to the fewest inserted returns that still fail.
+    An unlabelled recording has no objects of its own: pass ``objects`` (templates cut
+    from any labelled recording or rendered scene, :func:`object_templates`; they are
+    re-cast for the frame's sensor); without them, or when the frame's sensor is unknown,
+    the relation is reported as having tested nothing.
 
     The check is :class:`~pytest_metamorphic.lidar.followups.insert.InsertedDetected` (an inserted
     object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
@@ -104,4 +108,4 @@ def object_insertion(
             _frame(frame), objects=objects, min_returns=min_points, layout=layout, scope=scope
         )
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)

@@ -12,7 +12,7 @@ from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.lidar.followups.faults import CoveredObstaclesKept
 from pytest_metamorphic.lidar.followups.weather import WEATHER_KINDS, WeatherKind
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
-from pytest_metamorphic.relations.lidar._common import _PROBE, _frame
+from pytest_metamorphic.relations.lidar._common import _PROBE, _frame, lidar_relation
 from pytest_metamorphic.strategies._faults import weathered_frames
 
 __all__ = ["DEFAULT_VISIBILITIES", "adverse_weather"]
@@ -66,4 +66,4 @@ def adverse_weather(
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         return weathered_frames(_frame(frame), kinds=kinds, visibilities=visibilities)
 
-    return MetamorphicRelation(name, followup, relation)
+    return lidar_relation(name, followup, relation)

@@ -49,7 +49,7 @@ class InsertedDetected(Relation):
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
         insertion = context.params.get("insert_object", ())
         if insertion is None:
-            return Verdict(True, self.name, "no free place to insert an object", {})
+            return Verdict(True, self.name, "no free place to insert an object", {"judged": 0})
         if not isinstance(insertion, InsertObject):
             raise InvalidArgument(
                 f"{self.name} needs the follow-up's InsertObject in params['insert_object'] "
@@ -59,12 +59,12 @@ class InsertedDetected(Relation):
         details: dict[str, Any] = {"inserted": insertion.box.describe(), "returns": returns}
         judged = bool(self.scope.judged([insertion.box], context.followup_input)[0])
         if returns < self.min_points or not judged:
-            details["judged"] = False
+            details["judged"] = 0
             return Verdict(True, self.name, "too few returns or not judged", details)
         z = insertion.points[:, 2]
         span = float(z.max() - z.min())
         if insertion.span and span < self.min_height_share * insertion.span:
-            details["judged"] = False
+            details["judged"] = 0
             return Verdict(
                 True,
                 self.name,
@@ -73,7 +73,7 @@ class InsertedDetected(Relation):
                 details,
             )
         share = share_inside(insertion.points[:, :3], as_boxes(followup_output, "follow-up"))
-        details.update(judged=True, detected_share=round(share, 3))
+        details.update(judged=1, detected_share=round(share, 3))
         if share >= self.min_detected:
             return Verdict(True, self.name, details=details)
         template = insertion.template

@@ -23,6 +23,7 @@ from pytest_metamorphic.lidar.model.obstacles.matching import (
     unmatched_twins,
 )
 from pytest_metamorphic.lidar.model.obstacles.points import (
+    box_support,
     footprint_distances,
     points_in_boxes,
     share_inside,
@@ -39,6 +40,7 @@ __all__ = [
     "SizePrior",
     "as_boxes",
     "bev_iou",
+    "box_support",
     "center_distances",
     "footprint_distances",
     "points_in_boxes",

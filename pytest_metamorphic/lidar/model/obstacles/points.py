@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pytest_metamorphic.lidar.model.obstacles.box import Box, _as_xyz
 
-__all__ = ["footprint_distances", "points_in_boxes", "share_inside"]
+__all__ = ["box_support", "footprint_distances", "points_in_boxes", "share_inside"]
 
 
 def points_in_boxes(
@@ -51,6 +51,23 @@ def points_in_boxes(
         rows = np.sort(np.asarray(candidates, dtype=np.intp))
         found.append(rows[box.contains(xyz[rows])] if len(rows) else rows)
     return found
+
+
+def box_support(boxes: Sequence[Box], points: ArrayLike | None) -> NDArray[np.int64]:
+    """(n,) int64: the returns supporting each box: ``Box.points`` where the detector
+    reported it, otherwise the points of ``points`` inside the box grown by 10 cm (what a
+    converter's or a process's boxes, which carry no count, are judged by). Without
+    ``points``, a box without a count has support 0.
+    """
+    support = np.array([-1 if box.points is None else box.points for box in boxes], np.int64)
+    missing = np.flatnonzero(support < 0)
+    if len(missing):
+        if points is None:
+            support[missing] = 0
+        else:
+            rows = points_in_boxes(points, [boxes[i] for i in missing], grow=0.1)
+            support[missing] = [len(r) for r in rows]
+    return support
 
 
 def share_inside(points: ArrayLike, boxes: Sequence[Box], *, grow: float = 0.1) -> float:
