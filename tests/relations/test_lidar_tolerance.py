@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from pytest_metamorphic import InvalidArgument
@@ -50,13 +51,18 @@ def test_objects_seen_by_a_few_returns_are_not_judged_by_the_learned_invariances
     assert appeared.holds and appeared.details["judged_followup"] == 1
     assert "or seen by fewer than 10 returns changed" in appeared.explanation
     assert same.check([*cars, ghost], cars, CONTEXT).holds  # nor when it disappears
-    # Well seen, or of unknown support, it is judged both ways.
+    # Well seen, it is judged both ways; a box that does not say (a converter's, a
+    # process's) is judged by the returns the cloud has in it: 12 here, none in CONTEXT.
     seen = Box(ghost.center, ghost.size, 0.0, "cyclist", points=10)
     unknown = Box(ghost.center, ghost.size, 0.0, "cyclist")
-    for box in (seen, unknown):
-        verdict = same.check(cars, [*cars, box], CONTEXT)
+    returns = np.column_stack([np.full(12, 33.9), np.linspace(-0.1, 0.1, 12), np.linspace(-1.5, -0.5, 12), np.zeros(12)])
+    crowded = Frame(PointCloud(returns), roi=ROAD)
+    supported = CheckContext(crowded, crowded, {}, 0)
+    for box, context in ((seen, CONTEXT), (unknown, supported)):
+        verdict = same.check(cars, [*cars, box], context)
         assert not verdict.holds and "cyclist at (33.9, 0.0) has no match" in verdict.explanation
-        assert not same.check([*cars, box], cars, CONTEXT).holds
+        assert not same.check([*cars, box], cars, context).holds
+    assert same.check(cars, [*cars, unknown], CONTEXT).holds  # no return in it: not judged
     # A car that is lost is lost, however the other objects are supported.
     assert not same.check(cars, [ghost], CONTEXT).holds
     with pytest.raises(InvalidArgument, match="min_points=-1 must be an int >= 0"):

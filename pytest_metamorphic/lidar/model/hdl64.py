@@ -1,114 +1,12 @@
-"""The Velodyne HDL-64E beam layout, from a real calibration, for synthetic scans.
+"""The Velodyne HDL-64E's beam layout (kept at this path; the sensor models live in
+:mod:`pytest_metamorphic.lidar.model.sensors`, this one in its ``hdl64e`` module)."""
 
-The 64 lasers are not evenly spaced: an upper block of 32 spans about +2.0° to -8.6°
-(~0.34° apart) and a lower block of 32 about -8.8° to -24.6° (~0.5° apart). Each laser also
-has its own azimuth offset of up to ±10° (``rot_correction``). The numbers below are the
-``vert_correction`` and ``rot_correction`` of every laser in ros-drivers/velodyne's
-``velodyne_pointcloud/params/64e_s3-xiesc.yaml`` (an HDL-64E S3 factory calibration,
-radians, listed by ``laser_id``).
-
-The sensor spins at 5-20 Hz firing about 1.3 M points/s; at 10 Hz each laser fires 2083
-times per revolution, an azimuth step of 0.1728° (KITTI records ~120k points per sweep).
-Range is up to 120 m with about 2 cm accuracy.
-
-A data packet holds 12 blocks of 32 lasers, the upper and lower blocks firing together:
-6 firings, 1.04 degrees at 10 Hz. Other sensors are in
-:mod:`pytest_metamorphic.lidar.model.sensors`; :class:`BeamLayout` and :class:`Rays` live
-there and are re-exported here.
-"""
-
-from __future__ import annotations
-
-import numpy as np
-from numpy.typing import NDArray
-
-from pytest_metamorphic.lidar.model.sensors.layout import BeamLayout, Rays
+from pytest_metamorphic.lidar.model.sensors.hdl64e import (
+    HDL64E,
+    HDL64E_AZIMUTH_OFFSETS,
+    HDL64E_ELEVATIONS,
+    BeamLayout,
+    Rays,
+)
 
 __all__ = ["HDL64E", "HDL64E_AZIMUTH_OFFSETS", "HDL64E_ELEVATIONS", "BeamLayout", "Rays"]
-
-# (vert_correction, rot_correction) in radians for laser_id 0..63, from 64e_s3-xiesc.yaml.
-_CALIBRATION = (
-    (-0.1261818455292898, -0.07648247457737148),
-    (-0.11953745909742221, -0.03932070772308096),
-    (0.00356118725906175, 0.06005350008746038),
-    (0.010306535403103584, 0.09919490315516696),
-    (-0.1144967440141401, -0.00095355016485159),
-    (-0.10803612329921503, 0.03824387099052699),
-    (-0.14944538101702426, -0.015297255529962315),
-    (-0.14344353231329066, 0.024255809272700053),
-    (-0.10278016723125998, 0.07354442571180776),
-    (-0.09569590023202451, 0.11317857886058363),
-    (-0.1386345201601863, 0.05954228616823424),
-    (-0.13181073657049397, 0.09906092120980835),
-    (-0.054438932963427306, -0.07574798243226695),
-    (-0.048730533448148504, -0.037047761947550245),
-    (-0.08961595328025192, -0.0895955468906376),
-    (-0.0839353306800186, -0.05072966149865084),
-    (-0.043427018903405855, -0.001864320564407547),
-    (-0.03648801216715539, 0.03747852840556422),
-    (-0.07906187922560139, -0.015194972429011364),
-    (-0.07255814015150577, 0.02391977928648433),
-    (-0.031587736747464255, 0.07264374331532833),
-    (-0.025460288914769372, 0.11143265968730214),
-    (-0.06665878416276627, 0.05942554283989759),
-    (-0.06055112836378901, 0.09797042203986979),
-    (0.015620435355027301, -0.07658879305408597),
-    (0.022567997346205196, -0.0379098725675606),
-    (-0.019943931467746017, -0.0904730670226138),
-    (-0.013200099491225388, -0.051308328902808065),
-    (0.027266617424120905, -0.0019143155208309244),
-    (0.03421014630846329, 0.03681404490741569),
-    (-0.007885903531460533, -0.015542064486559148),
-    (-0.0015491891506552067, 0.023284423588222334),
-    (-0.39021216204755743, -0.1278634161583795),
-    (-0.38355018793281753, -0.066528586091226),
-    (-0.197138848550284, 0.08854290740283328),
-    (-0.18768579625563228, 0.14547956884148489),
-    (-0.3750836655445631, -0.005071588212420635),
-    (-0.36762882325722723, 0.05427589303135225),
-    (-0.4285668719175616, -0.028143856558087547),
-    (-0.4214410765541042, 0.03172272051181349),
-    (-0.3565455112681652, 0.11411698480351568),
-    (-0.34717860842539194, 0.1735498527902839),
-    (-0.4110102035460227, 0.09564756333839054),
-    (-0.40083030888437793, 0.15538288292189534),
-    (-0.2840315837972709, -0.12413605610123538),
-    (-0.27761533458791926, -0.06413447432303407),
-    (-0.3359268721635124, -0.14872602785785152),
-    (-0.33026751989087316, -0.08707280959256145),
-    (-0.26851710773019805, -0.006799911150716457),
-    (-0.26051854302098837, 0.05242808851765633),
-    (-0.3216451745070007, -0.028383715411859876),
-    (-0.3135280670349956, 0.031843273893907245),
-    (-0.24941678290173272, 0.10955275158734502),
-    (-0.2409525119882134, 0.16876716543828738),
-    (-0.30313513748485243, 0.09037283276367176),
-    (-0.29323634555253386, 0.14871534295217081),
-    (-0.17760463486977288, -0.12100867217308608),
-    (-0.17006926832673774, -0.06431965899265843),
-    (-0.22974121500510264, -0.14486168214370612),
-    (-0.22391891879349718, -0.0852480451703211),
-    (-0.16231529056824404, -0.005967226432828876),
-    (-0.15314424682880032, 0.050600613599087636),
-    (-0.21457119711920336, -0.027436902217920986),
-    (-0.2079266762969834, 0.0290479702718764),
-)
-
-HDL64E_ELEVATIONS: NDArray[np.float64] = np.array([v for v, _ in _CALIBRATION])
-"""(64,) float64: elevation of each laser in radians, by laser id (positive is up)."""
-HDL64E_ELEVATIONS.setflags(write=False)
-
-HDL64E_AZIMUTH_OFFSETS: NDArray[np.float64] = np.array([r for _, r in _CALIBRATION])
-"""(64,) float64: per-laser azimuth correction in radians, by laser id."""
-HDL64E_AZIMUTH_OFFSETS.setflags(write=False)
-
-
-HDL64E = BeamLayout(
-    name="Velodyne HDL-64E S3 (64e_s3-xiesc calibration), 10 Hz",
-    elevations=HDL64E_ELEVATIONS,
-    azimuth_offsets=HDL64E_AZIMUTH_OFFSETS,
-    packet_firings=6,
-    range_resolution=0.002,
-    detection=(0.10, 50.0),
-)
-"""The HDL-64E at 10 Hz: 64 x 2083 = 133,312 rays per sweep, 120 m range, 2 cm noise."""

@@ -43,7 +43,7 @@ import math
 import numpy as np
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E
+from pytest_metamorphic.lidar.model.sensors.hdl64e import HDL64E
 from pytest_metamorphic.lidar.model.sensors.layout import BeamLayout, RosetteScanner, ScanPattern
 
 __all__ = [
