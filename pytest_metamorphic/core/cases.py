@@ -98,7 +98,9 @@ class MetamorphicRelation:
                 "e.g. relations.equal() or relations.predicate(fn)"
             )
         if self.same_input is not None and not callable(self.same_input):
-            raise InvalidArgument(f"same_input={self.same_input!r} of {self.name!r} must be callable")
+            raise InvalidArgument(
+                f"same_input={self.same_input!r} of {self.name!r} must be callable"
+            )
 
     def unchanged(self, source: Any, followup: Any) -> bool:
         """Whether ``followup`` is ``source`` or, by :attr:`same_input`, equal to it."""

@@ -30,10 +30,10 @@ __all__ = [
     "approx",
     "cardinality",
     "equal",
+    "judged_count",
     "predicate",
     "subset",
     "superset",
-    "judged_count",
     "unjudged_changes",
 ]
 

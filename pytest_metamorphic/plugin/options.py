@@ -212,7 +212,9 @@ def parse_options(config: pytest.Config) -> Options:
         timeout=_timeout_option(config),
         dask=dask,
         dask_batch=dask_batch,
-        strict_tested=bool(config.getoption("mt_strict_tested") or config.getini("mt_strict_tested")),
+        strict_tested=bool(
+            config.getoption("mt_strict_tested") or config.getini("mt_strict_tested")
+        ),
     )
 
 

@@ -193,7 +193,9 @@ def _decode_frame(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
         pose=field(spec, "pose", (list, type(None)), where=name, path=record, default=None),
         source=field(spec, "origin", str, where=name, path=record, default=""),
         index=field(spec, "index", int, where=name, path=record, default=0),
-        sensor=_sensor(field(spec, "sensor", (str, type(None)), where=name, path=record, default=None), record),
+        sensor=_sensor(
+            field(spec, "sensor", (str, type(None)), where=name, path=record, default=None), record
+        ),
     )
 
 

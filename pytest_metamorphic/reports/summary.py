@@ -88,7 +88,12 @@ class SessionSummary:
             for name, stats in test.relations.items():
                 reason = test.nothing_tested(name)
                 rows.append(
-                    {"test": test.nodeid, "relation": name, **asdict(stats), "nothing_tested": reason}
+                    {
+                        "test": test.nodeid,
+                        "relation": name,
+                        **asdict(stats),
+                        "nothing_tested": reason,
+                    }
                 )
         return rows
 
@@ -162,8 +167,12 @@ class SessionSummary:
             )
         nothing = [row for row in rows if row["nothing_tested"]]
         if nothing:
-            lines.append(f"NOTHING TESTED by {len(nothing)} relation(s) (a pass that proves nothing):")
-            lines += [f"  {row['test']} :: {row['relation']}: {row['nothing_tested']}" for row in nothing]
+            lines.append(
+                f"NOTHING TESTED by {len(nothing)} relation(s) (a pass that proves nothing):"
+            )
+            lines += [
+                f"  {row['test']} :: {row['relation']}: {row['nothing_tested']}" for row in nothing
+            ]
         return lines
 
     @staticmethod

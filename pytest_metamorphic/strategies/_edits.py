@@ -29,8 +29,8 @@ from pytest_metamorphic.lidar.followups.insert import (
 from pytest_metamorphic.lidar.judging.scope import ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
-from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.strategies._noise import _check_frame
 
 __all__ = ["inserted_objects", "removed_objects"]
@@ -58,8 +58,7 @@ def removed_objects(
         objects = removal_candidates(frame, scope=chosen)
         if not objects:
             reason = (
-                f"no car, pedestrian or cyclist to remove among {proposer} "
-                f"({chosen.describe()})"
+                f"no car, pedestrian or cyclist to remove among {proposer} ({chosen.describe()})"
             )
             return st.just(Followup.not_applicable(frame, reason))
 
@@ -103,6 +102,7 @@ def inserted_objects(
             raise InvalidArgument("objects is empty: pass None to take the frame's own")
     if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
         raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
+
     def insertions() -> st.SearchStrategy[Followup]:
         beams = layout if layout is not None else frame_sensor(frame).sensor
         if not isinstance(beams, BeamLayout):

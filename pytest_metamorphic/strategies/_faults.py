@@ -57,8 +57,8 @@ def dead_beams(
     limit = _positive(max_rings, "max_rings")
 
     def beams() -> st.SearchStrategy[Followup]:
-        estimate = frame_sensor(frame) if layout is None else estimate_sensor(
-            frame.cloud, sensor=layout
+        estimate = (
+            frame_sensor(frame) if layout is None else estimate_sensor(frame.cloud, sensor=layout)
         )
         lasers = estimate.lasers
         if estimate.rings is None or len(lasers) < 2:

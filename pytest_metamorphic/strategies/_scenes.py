@@ -30,8 +30,8 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E
-from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 from pytest_metamorphic.lidar.model.obstacles import LABELS, Label
+from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 from pytest_metamorphic.lidar.roi import ROI
 from pytest_metamorphic.lidar.synthetic import (
     CastEngine,

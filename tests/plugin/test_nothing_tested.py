@@ -77,7 +77,10 @@ def test_strict_fails_a_test_that_tested_nothing(pytester: pytest.Pytester) -> N
     result = pytester.runpytest("--mt-strict-tested")
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(
-        ["relation 'never applies' tested nothing: no follow-up could be made*", "(--mt-strict-tested)"]
+        [
+            "relation 'never applies' tested nothing: no follow-up could be made*",
+            "(--mt-strict-tested)",
+        ]
     )
 
 

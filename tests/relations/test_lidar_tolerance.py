@@ -55,7 +55,9 @@ def test_objects_seen_by_a_few_returns_are_not_judged_by_the_learned_invariances
     # process's) is judged by the returns the cloud has in it: 12 here, none in CONTEXT.
     seen = Box(ghost.center, ghost.size, 0.0, "cyclist", points=10)
     unknown = Box(ghost.center, ghost.size, 0.0, "cyclist")
-    returns = np.column_stack([np.full(12, 33.9), np.linspace(-0.1, 0.1, 12), np.linspace(-1.5, -0.5, 12), np.zeros(12)])
+    returns = np.column_stack(
+        [np.full(12, 33.9), np.linspace(-0.1, 0.1, 12), np.linspace(-1.5, -0.5, 12), np.zeros(12)]
+    )
     crowded = Frame(PointCloud(returns), roi=ROAD)
     supported = CheckContext(crowded, crowded, {}, 0)
     for box, context in ((seen, CONTEXT), (unknown, supported)):

@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.edit import RemoveObject
-from pytest_metamorphic.lidar.model.hdl64 import HDL64E
 from pytest_metamorphic.lidar.followups.faults import PACKET_DEGREES, DropRings
 from pytest_metamorphic.lidar.followups.insert import InsertObject
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E
 from pytest_metamorphic.lidar.roi import ROI
 from tests.core.lidar_cases import street
 from tests.deterministic import find

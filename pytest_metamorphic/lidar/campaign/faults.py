@@ -30,8 +30,8 @@ from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E
-from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.sensors import frame_sensor
 
 __all__ = [
     "FAULT_SEVERITIES",

@@ -16,8 +16,8 @@ from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E
-from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.sensors import ScanPattern, as_sensor
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
 
@@ -33,9 +33,7 @@ SourceFn = Callable[[np.random.Generator, int], Frame]
 DEFAULT_SYNTHETIC_SOURCES = 1000  # the paper's frame count
 
 
-def synthetic_frames(
-    *, beams: ScanPattern | str = HDL64E, **scene_options: Any
-) -> SourceFn:
+def synthetic_frames(*, beams: ScanPattern | str = HDL64E, **scene_options: Any) -> SourceFn:
     """Campaign sources: an independent random street scene per source, rendered with
     ``beams`` (a sensor model of :mod:`pytest_metamorphic.lidar.model.sensors` or its key).
 

@@ -30,6 +30,14 @@ from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.obstacles import (
+    LABELS,
+    Box,
+    Label,
+    as_boxes,
+    points_in_boxes,
+    share_inside,
+)
 from pytest_metamorphic.lidar.model.sensors import (
     RING_FIELDS,
     estimate_sensor,
@@ -39,14 +47,6 @@ from pytest_metamorphic.lidar.model.sensors import (
 from pytest_metamorphic.lidar.model.sensors.identify import (
     rings_from_elevation,
     rings_from_scan_order,
-)
-from pytest_metamorphic.lidar.model.obstacles import (
-    LABELS,
-    Box,
-    Label,
-    as_boxes,
-    points_in_boxes,
-    share_inside,
 )
 
 __all__ = [
@@ -113,7 +113,9 @@ def derive_rings(
     if method == "auto":
         estimate = estimate_sensor(cloud, sensor=layout)
         if estimate.rings is None:
-            raise InvalidArgument(f"the lasers of this cloud cannot be known: {estimate.describe()}")
+            raise InvalidArgument(
+                f"the lasers of this cloud cannot be known: {estimate.describe()}"
+            )
         return estimate.rings
     if method == "field":
         name = ring_field(cloud)

@@ -65,8 +65,8 @@ from pytest_metamorphic.lidar.model.obstacles import (
     Box,
     IoUMatcher,
     as_boxes,
-    box_support,
     bev_iou,
+    box_support,
     unmatched_twins,
 )
 

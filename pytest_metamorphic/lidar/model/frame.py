@@ -38,8 +38,9 @@ class Frame:
       Position of the frame in its source sequence (0 for a single file).
     sensor : ScanPattern or None
       The sensor that recorded it (from :mod:`pytest_metamorphic.lidar.model.sensors`,
-      e.g. ``VLP16``; a catalogue key such as ``"vlp16"`` is accepted too); None: identified from the cloud when a relation
-      needs it (:func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`).
+      e.g. ``VLP16``; a catalogue key such as ``"vlp16"`` is accepted too); None:
+      identified from the cloud when a relation needs it
+      (:func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`).
 
     Notes
     -----

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,8 +14,8 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E
-from pytest_metamorphic.lidar.model.sensors.layout import Rays, ScanPattern
 from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.model.sensors.layout import Rays, ScanPattern
 from pytest_metamorphic.lidar.synthetic.description import Scene
 from pytest_metamorphic.lidar.synthetic.meshes import SceneMesh, scene_mesh
 from pytest_metamorphic.lidar.synthetic.raycast import CastEngine, cast_rays
@@ -53,7 +54,8 @@ def render(
     -------
     Frame
       ``cloud``: x, y, z, intensity (0-1) as float32, in firing order, with fields
-      ``ring`` (uint8, 0 = lowest beam; absent for a scanner without rings) and ``instance`` (int32: obstacle index,
+      ``ring`` (uint8, 0 = lowest beam; absent for a scanner without rings) and
+      ``instance`` (int32: obstacle index,
       :data:`GROUND_INSTANCE` or :data:`BACKGROUND_INSTANCE`); ``roi``: the scene's ROI;
       ``boxes``: every obstacle's box with ``points`` set to its number of returns;
       ``source``: ``"synthetic:<scene name>"``; ``sensor``: ``beams``.
@@ -85,7 +87,7 @@ def render(
     points[:, :3] = directions * measured[:, None]
     points[:, 3] = np.clip(intensity, 0.0, 1.0)
     instance = mesh.face_instance[face]
-    fields = {"instance": instance.astype(np.int32)}
+    fields: dict[str, NDArray[Any]] = {"instance": instance.astype(np.int32)}
     if beams.has_rings:
         fields = {"ring": rays.ring[ray], **fields}
     cloud = PointCloud(points, fields=fields, frame_id="velodyne")
@@ -94,9 +96,7 @@ def render(
         Box(o.box.center, o.box.size, o.box.yaw, o.box.label, o.box.score, int(counts[i]))
         for i, o in enumerate(scene.obstacles)
     )
-    return Frame(
-        cloud, roi=scene.roi, boxes=boxes, source=f"synthetic:{scene.name}", sensor=beams
-    )
+    return Frame(cloud, roi=scene.roi, boxes=boxes, source=f"synthetic:{scene.name}", sensor=beams)
 
 
 def _cos_incidence(

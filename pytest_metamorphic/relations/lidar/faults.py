@@ -47,8 +47,9 @@ def beam_loss(
     frame's: its laser field under any driver's name, a KITTI sweep's storage order, or a
     catalogue sensor fitted to the elevations; shrinking toward fewer and lower rings). A
     frame whose lasers cannot be known (an unidentified sensor without a laser field, a
-    non-repetitive scanner) gets no follow-up, and the report says why. A violation reduces to the fewest dead beams that still lose
-    the obstacle. The check is :class:`CoveredObstaclesKept`.
+    non-repetitive scanner) gets no follow-up, and the report says why. A violation
+    reduces to the fewest dead beams that still lose the obstacle. The check is
+    :class:`CoveredObstaclesKept`.
 
     Precondition (measured): the reference pipeline and the whole-scene detector keep every
     well-covered obstacle (>= 30 points and >= half of them left, over >= 80 % of their
@@ -90,8 +91,9 @@ def packet_loss(
     """Lost packets (an azimuth block of every laser) lose no obstacle they leave well
     covered. The follow-up removes 1 to ``max_packets`` consecutive packets (the frame's
     sensor's packet width each: 1.04 degrees for the HDL-64E, 4.8 for a VLP-16; not
-    applicable, and reported so, when the sensor is unknown) centred on a drawn bearing, by default one at which the
-    ROI holds returns (``within_roi``; :func:`~pytest_metamorphic.strategies.lost_packets`).
+    applicable, and reported so, when the sensor is unknown) centred on a drawn bearing,
+    by default one at which the ROI holds returns (``within_roi``;
+    :func:`~pytest_metamorphic.strategies.lost_packets`).
     The check is :class:`CoveredObstaclesKept`.
     """
     _check_size(max_packets, "max_packets")

@@ -65,7 +65,7 @@ def box_support(boxes: Sequence[Box], points: ArrayLike | None) -> NDArray[np.in
         if points is None:
             support[missing] = 0
         else:
-            rows = points_in_boxes(points, [boxes[i] for i in missing], grow=0.1)
+            rows = points_in_boxes(points, [boxes[int(i)] for i in missing], grow=0.1)
             support[missing] = [len(r) for r in rows]
     return support
 

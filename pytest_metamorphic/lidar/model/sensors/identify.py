@@ -140,9 +140,7 @@ def elevation_fit(elevations_deg: NDArray[np.float64], sensor: ScanPattern) -> f
         np.abs(elevations_deg - beams[index - 1]), np.abs(elevations_deg - beams[index])
     )
     hit = float(np.mean(nearest <= _TOLERANCE_DEG))
-    outside = float(
-        np.mean((elevations_deg < beams[0] - 0.5) | (elevations_deg > beams[-1] + 0.5))
-    )
+    outside = float(np.mean((elevations_deg < beams[0] - 0.5) | (elevations_deg > beams[-1] + 0.5)))
     gaps = np.diff(beams)
     chance = float(np.minimum(gaps, 2 * _TOLERANCE_DEG).sum() / max(gaps.sum(), 1e-9))
     if chance >= 1.0:
@@ -260,9 +258,9 @@ def estimate_sensor(cloud: PointCloud, *, sensor: SensorLike = None) -> SensorEs
         return SensorEstimate(model, "ring field", fit, rings, field)
     for model in SENSORS.values():
         if model.has_rings:
-            rings = rings_from_scan_order(cloud.xyz, model.lasers)
-            if rings is not None:
-                return SensorEstimate(model, "scan order", 1.0, rings)
+            ordered = rings_from_scan_order(cloud.xyz, model.lasers)
+            if ordered is not None:
+                return SensorEstimate(model, "scan order", 1.0, ordered)
     model, fit = _best_fit(cloud.xyz)
     if model is None:
         return SensorEstimate(None, "unknown", fit, None)

@@ -262,10 +262,12 @@ def _firings(steps: int, azimuth_range: tuple[float, float] | None) -> NDArray[n
             raise InvalidArgument(f"azimuth_range={azimuth_range!r} needs start < stop")
         wrapped = np.mod(firing - start, 2 * math.pi)
         firing = firing[wrapped < stop - start]
-    return firing
+    return np.asarray(firing, dtype=np.float64)
 
 
-def _directions(azimuth: NDArray[np.float64], elevation: NDArray[np.float64]) -> NDArray[np.float64]:
+def _directions(
+    azimuth: NDArray[np.float64], elevation: NDArray[np.float64]
+) -> NDArray[np.float64]:
     cos_e = np.cos(elevation)
     return np.stack([cos_e * np.cos(azimuth), cos_e * np.sin(azimuth), np.sin(elevation)], axis=1)
 
@@ -330,7 +332,7 @@ class RosetteScanner(ScanPattern):
         return 0
 
     @property
-    def elevations(self) -> NDArray[np.float64]:
+    def elevations(self) -> NDArray[np.float64]:  # type: ignore[override]  # no rings
         return np.zeros(0)
 
     @property
