@@ -125,7 +125,7 @@ def inserted_objects(
                 if templates
                 else "no object to insert: the frame has no labelled car, pedestrian or "
                 f"cyclist of >= {min_returns} returns; pass objects= (object_templates of "
-                "labelled recordings or rendered scenes)"
+                "labelled recordings or rendered scenes, or load_templates(library))"
             )
             return st.just(Followup.not_applicable(frame, reason))
 

@@ -17,7 +17,7 @@ Public API::
 
 from pytest_metamorphic.driving.osm.graph import StreetGraph, street_graph
 from pytest_metamorphic.driving.osm.projection import EARTH_RADIUS_M, LocalProjection
-from pytest_metamorphic.driving.osm.reader import OsmData, OsmNode, OsmWay, read_osm
+from pytest_metamorphic.driving.osm.reader import OsmData, OsmNode, OsmRelation, OsmWay, read_osm
 from pytest_metamorphic.driving.osm.roads import Road, load_roads
 from pytest_metamorphic.driving.osm.tags import (
     CYCLE_LANE_WIDTH,
@@ -45,6 +45,7 @@ __all__ = [
     "LocalProjection",
     "OsmData",
     "OsmNode",
+    "OsmRelation",
     "OsmWay",
     "Road",
     "StreetGraph",

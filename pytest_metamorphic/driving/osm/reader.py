@@ -24,7 +24,7 @@ from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.core.files import open_regular
 from pytest_metamorphic.driving.osm.projection import LocalProjection
 
-__all__ = ["OsmData", "OsmNode", "OsmWay", "read_osm"]
+__all__ = ["OsmData", "OsmNode", "OsmRelation", "OsmWay", "read_osm"]
 
 _CHUNK = 1 << 20
 _DEFAULT_MAX_BYTES = 512 << 20
@@ -52,6 +52,16 @@ class OsmWay:
     tags: Mapping[str, str] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class OsmRelation:
+    """An OSM relation: id, its members as ``(type, ref, role)``, tags (Lanelet2 maps keep
+    each lane as a ``type=lanelet`` relation of a ``left`` and a ``right`` way)."""
+
+    id: int
+    members: tuple[tuple[str, int, str], ...]
+    tags: Mapping[str, str] = field(default_factory=dict)
+
+
 @dataclass(frozen=True, eq=False)
 class OsmData:
     """Everything :func:`read_osm` keeps from a file.
@@ -64,7 +74,8 @@ class OsmData:
     bounds : (minlat, minlon, maxlat, maxlon) or None
         The file's ``<bounds>`` element, when present.
     relation_count : int
-        Relations are counted, not kept.
+    relations : tuple of OsmRelation
+        In file order (Lanelet2's lanelets and regulatory elements).
     """
 
     path: str
@@ -72,6 +83,7 @@ class OsmData:
     ways: tuple[OsmWay, ...]
     bounds: tuple[float, float, float, float] | None
     relation_count: int
+    relations: tuple[OsmRelation, ...] = ()
 
     def projection(self) -> LocalProjection:
         """The local projection about the centre of the nodes' bounding box."""
@@ -96,6 +108,8 @@ class _Handler:
         self.ways: list[OsmWay] = []
         self.bounds: tuple[float, float, float, float] | None = None
         self.relation_count = 0
+        self.relations: list[OsmRelation] = []
+        self.current_members: list[tuple[str, int, str]] = []
         self.depth = 0
         self.root_seen = False
         # The element whose <tag>/<nd> children are being collected.
@@ -157,12 +171,20 @@ class _Handler:
             self.current_attrs = attrs
             self.current_tags = {}
             self.current_refs = []
+            self.current_members = []
         elif name == "tag" and self.current is not None:
             if "k" not in attrs or "v" not in attrs:
                 raise self._error(f"<tag> in a <{self.current}> needs both k and v")
             self.current_tags[attrs["k"]] = attrs["v"]
         elif name == "nd" and self.current == "way":
             self.current_refs.append(self._int(attrs, "ref", "nd"))
+        elif name == "member" and self.current == "relation":
+            member = (
+                attrs.get("type", ""),
+                self._int(attrs, "ref", "member"),
+                attrs.get("role", ""),
+            )
+            self.current_members.append(member)
         elif name == "bounds" and self.depth == 2:
             self.bounds = tuple(  # type: ignore[assignment]
                 self._float(attrs, key, "bounds")
@@ -180,11 +202,9 @@ class _Handler:
         # Deleted or invisible objects appear in editor and history files; they are not map data.
         if attrs.get("action") == "delete" or attrs.get("visible") == "false":
             return
-        if name == "relation":
-            self.relation_count += 1
-            return
         element_id = self._int(attrs, "id", name)
-        self.elements += 1 + len(self.current_refs) // 10 + len(self.current_tags)
+        self.elements += 1 + (len(self.current_refs) + len(self.current_members)) // 10
+        self.elements += len(self.current_tags)
         if self.elements > self.max_elements:
             raise DataError(
                 f"holds more than max_elements={self.max_elements} map elements (nodes, ways, "
@@ -193,6 +213,10 @@ class _Handler:
                 path=self.path,
             )
         tags = MappingProxyType(self.current_tags)
+        if name == "relation":
+            self.relation_count += 1
+            self.relations.append(OsmRelation(element_id, tuple(self.current_members), tags))
+            return
         if name == "node":
             lat = self._float(attrs, "lat", "node")
             lon = self._float(attrs, "lon", "node")
@@ -298,4 +322,5 @@ def read_osm(
         tuple(handler.ways),
         handler.bounds,
         handler.relation_count,
+        tuple(handler.relations),
     )

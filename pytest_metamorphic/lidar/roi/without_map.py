@@ -46,7 +46,8 @@ def corridor_roi(
     behind: float = 10.0,
     raster_range: float = 120.0,
 ) -> ROI:
-    """The corridor ``width`` metres wide along the ego path.
+    """The corridor ``width`` metres wide along the ego path: every point within
+    ``width / 2`` of it (so its ends are rounded, reaching ``width / 2`` beyond the path's).
 
     Parameters
     ----------

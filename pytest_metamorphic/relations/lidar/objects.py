@@ -80,7 +80,8 @@ def object_insertion(
     stands in front of. Shrinking goes toward the first object and the smallest move from
     where it was seen; a violation reduces to the fewest inserted returns that still fail.
     An unlabelled recording has no objects of its own: pass ``objects`` (templates cut
-    from any labelled recording or rendered scene, :func:`object_templates`; they are
+    from any labelled recording or rendered scene, :func:`object_templates`, or a saved
+    library, :func:`~pytest_metamorphic.lidar.followups.insert.load_templates`; they are
     re-cast for the frame's sensor); without them, or when the frame's sensor is unknown,
     the relation is reported as having tested nothing.
 

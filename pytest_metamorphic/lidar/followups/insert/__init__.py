@@ -13,7 +13,7 @@ semLidarFuzz's *add* and MultiTest's insertion, without a renderer of our own mo
    (inside the ROI), at the range it was seen from or up to 20 % nearer / 50 % farther,
    turned about the sensor so that the sensor sees the same face (the view is kept).
 3. :meth:`InsertObject.onto` casts the target sensor's beams (its
-   :class:`~pytest_metamorphic.lidar.model.hdl64.BeamLayout`) at the placed mesh: one return
+   :class:`~pytest_metamorphic.lidar.model.sensors.BeamLayout`) at the placed mesh: one return
    per beam that hits it, at the hit's range and the surrounding returns' intensity, with
    the beam's ring; returns of the target that the object hides (their ray crosses the
    mesh first) go; beams whose ray meets a target return in front of the object first are
@@ -25,10 +25,17 @@ returns (each with the target returns it hides): a violation reduces to the fewe
 inserted returns that still fail. :class:`InsertedDetected` checks that the inserted
 object is found, :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` that nothing else is
 lost.
+
+For recordings without labels, templates come from elsewhere: cut them from any labelled
+recording or rendered scene (:func:`object_templates`), keep them as a library
+(:func:`save_templates`, :func:`load_templates`) and pass them as ``objects=``; they are
+re-cast for each target frame's sensor
+(:func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`).
 """
 
 from pytest_metamorphic.lidar.followups.insert.check import InsertedDetected
 from pytest_metamorphic.lidar.followups.insert.insertion import INSERTED_INSTANCE, InsertObject
+from pytest_metamorphic.lidar.followups.insert.library import load_templates, save_templates
 from pytest_metamorphic.lidar.followups.insert.placement import RANGE_FACTORS, free_placements
 from pytest_metamorphic.lidar.followups.insert.template import (
     ObjectTemplate,
@@ -44,5 +51,7 @@ __all__ = [
     "ObjectTemplate",
     "Placement",
     "free_placements",
+    "load_templates",
     "object_templates",
+    "save_templates",
 ]

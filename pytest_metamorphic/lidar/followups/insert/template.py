@@ -19,11 +19,13 @@ from pytest_metamorphic.lidar.followups.edit import (
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box, Label
+from pytest_metamorphic.lidar.model.sensors import BeamLayout, frame_sensor
 from pytest_metamorphic.lidar.synthetic.meshes import SceneMesh
 
 __all__ = ["ObjectTemplate", "Placement", "object_templates"]
 
-# Normalising spacings for the mesh (HDL-64E: firings 0.17 degrees apart, lasers 0.3-0.6).
+# Normalising spacings for the mesh when the sensor is not known (HDL-64E: firings 0.17
+# degrees apart, lasers 0.3-0.6); otherwise the frame's sensor's (_spacings).
 _AZIMUTH_SPACING = math.radians(0.17)
 _ELEVATION_SPACING = math.radians(0.45)
 _MAX_GAP = 3.0  # triangles wider than this many spacings span a hole
@@ -81,7 +83,7 @@ class ObjectTemplate:
                 f"{where} has {len(points)} returns; a template needs >= {_MIN_RETURNS}"
             )
         bearing = math.atan2(box.center[1], box.center[0])
-        faces = _surface(points[:, :3], bearing)
+        faces = _surface(points[:, :3], bearing, _spacings(frame))
         if len(faces) == 0:
             raise InvalidArgument(f"the returns of {where} do not form a surface")
         c, s = math.cos(box.yaw), math.sin(box.yaw)
@@ -136,14 +138,28 @@ class ObjectTemplate:
         )
 
 
-def _surface(xyz: NDArray[np.float64], bearing: float) -> NDArray[np.int64]:
+def _spacings(frame: Frame) -> tuple[float, float]:
+    """(azimuth, elevation) radians between neighbouring returns of the frame's sensor
+    (a VLP-16's lasers are 2 degrees apart, an HDL-64E's 0.3-0.6); the HDL-64E's when the
+    sensor is not known."""
+    sensor = frame_sensor(frame).sensor
+    if not isinstance(sensor, BeamLayout) or sensor.lasers < 2:
+        return _AZIMUTH_SPACING, _ELEVATION_SPACING
+    gaps = np.diff(np.sort(sensor.elevations))
+    return max(sensor.azimuth_step, _AZIMUTH_SPACING), float(np.median(gaps[gaps > 1e-6]))
+
+
+def _surface(
+    xyz: NDArray[np.float64],
+    bearing: float,
+    spacings: tuple[float, float] = (_AZIMUTH_SPACING, _ELEVATION_SPACING),
+) -> NDArray[np.int64]:
     """Triangles joining returns that neighbour each other in the sensor's view (azimuth
-    taken relative to ``bearing``, so an object behind the sensor does not straddle ±π)."""
+    taken relative to ``bearing``, so an object behind the sensor does not straddle ±π;
+    angles in units of the sensor's ``spacings``)."""
     azimuth = _relative_bearing(xyz, bearing)
     planar = np.hypot(xyz[:, 0], xyz[:, 1])
-    view = np.column_stack(
-        [azimuth / _AZIMUTH_SPACING, np.arctan2(xyz[:, 2], planar) / _ELEVATION_SPACING]
-    )
+    view = np.column_stack([azimuth / spacings[0], np.arctan2(xyz[:, 2], planar) / spacings[1]])
     try:
         faces = Delaunay(view).simplices.astype(np.int64)
     except (QhullError, ValueError):
