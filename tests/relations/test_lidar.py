@@ -88,7 +88,7 @@ QUICK = settings(
 @needs_kitti
 @QUICK
 @metamorphic(
-    source=st.deferred(lambda: frames(str(KITTI), roi=kitti_label_region(), labels=False)),
+    source=st.deferred(lambda: frames(str(KITTI), roi=kitti_label_region(), labels=True)),
     relations=lidar_relations(),
     followups=1,
 )

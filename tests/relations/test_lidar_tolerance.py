@@ -133,3 +133,30 @@ def test_a_mirrored_object_in_two_pieces_keeps_its_partner_under_the_learned_pro
                              yaw_tolerance=20, exclusive=False)  # fmt: skip
     assert shared.check([cyclist], pieces, context).holds
     assert not shared.check([cyclist], [pieces[0].translated(0.0, 1.0)], context).holds
+
+
+def test_turns_judge_a_converters_boxes_under_the_learned_profile() -> None:
+    # Boxes from a converter or a process carry no point count: they are judged by the
+    # returns the turned cloud has in them (before, the learned profile's >= 10 points
+    # skipped every such box, and a quarter turn that lost two cars "held").
+    from dataclasses import replace
+
+    from hypothesis import HealthCheck, settings
+
+    from tests.core.lidar_cases import street
+    from tests.deterministic import find
+
+    frame = street()
+    boxes = [replace(box, points=None) for box in frame.boxes if box.label != "unknown"]
+    assert len(boxes) >= 2
+    for name in ("turned", "mirrored"):
+        relation = next(r for r in lidar_relations(tolerance="learned") if name in r.name)
+        search = settings(max_examples=5, derandomize=True, database=None, deadline=None,
+                          suppress_health_check=list(HealthCheck))  # fmt: skip
+        followup = find(relation.followup(frame), lambda f: True, settings=search)
+        moved = relation.relation.move  # type: ignore[attr-defined]
+        context = CheckContext(frame, followup.input, followup.params, 0)
+        expected = [moved(box, context) for box in boxes]
+        assert relation.relation.check(boxes, expected, context).holds
+        lost = relation.relation.check(boxes, expected[1:], context)
+        assert not lost.holds and lost.details["judged"] >= 2 * len(boxes) - 1

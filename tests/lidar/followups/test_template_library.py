@@ -43,7 +43,7 @@ def test_a_library_round_trips_every_template(tmp_path: Path) -> None:
 def test_a_bad_library_is_named(tmp_path: Path) -> None:
     not_npz = tmp_path / "objects.npz"
     not_npz.write_text("hello")
-    with pytest.raises(DataError, match="objects.npz.*not an object-template library"):
+    with pytest.raises(DataError, match=r"objects\.npz.*not an object-template library"):
         load_templates(not_npz)
     other = tmp_path / "other.npz"
     np.savez(other, index=np.frombuffer(b'{"format": "x"}', dtype=np.uint8))
