@@ -112,7 +112,7 @@ def lost_packets(
 ) -> st.SearchStrategy[Followup]:
     """The frame without 1 to ``max_packets`` consecutive packets (an azimuth block of
     ``packet_degrees`` each; default the frame's sensor's,
-    :attr:`~pytest_metamorphic.lidar.model.sensors.BeamLayout.packet_degrees`: 1.04 for
+    ``BeamLayout.packet_degrees`` of :mod:`pytest_metamorphic.lidar.model.sensors`: 1.04 for
     the HDL-64E, 4.8 for a VLP-16), shrinking toward one packet straight ahead.
 
     With ``within_roi`` (default) the block is centred on a bearing at which the frame's
