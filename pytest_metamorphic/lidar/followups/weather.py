@@ -7,17 +7,20 @@ to what a recorded sweep lets us compute:
   ``exp(-2 α r)`` of its clear-air power, where the extinction coefficient follows from
   the meteorological optical range ``V`` (the visibility, 5 % contrast): ``α = 3.0 / V``.
   Its intensity is scaled by the same factor. It is still detected while
-  ``ρ exp(-2 α r) / r² >= τ``, with ``τ`` set by the HDL-64E's specification (a 10 %
-  reflective target is seen to 50 m) and ``ρ`` the return's intensity read as reflectance
-  (0-1; 0-255 scales are divided by 255), but never less than twice what it needed to be
-  seen in clear air: every recorded return *was* detected, and a return recorded with
-  intensity 0 (a tenth of a KITTI sweep) is taken to have had a 3 dB margin, not none.
+  ``ρ exp(-2 α r) / r² >= τ``, with ``τ`` set by the frame's sensor's specification
+  (``ScanPattern.detection``: for the HDL-64E a 10 % reflective target is seen to 50 m,
+  for an OS1-64 to 40 m; the HDL-64E's when the sensor is not known) and ``ρ`` the
+  return's intensity read as reflectance (0-1; 0-255 scales are divided by 255), but never
+  less than twice what it needed to be seen in clear air: every recorded return *was*
+  detected, and a return recorded with intensity 0 (a tenth of a KITTI sweep) is taken to
+  have had a 3 dB margin, not none.
 * **Droplet echoes** (backscatter): along each beam the first droplet lies at an
   exponentially distributed range (mean ``1 / α``); with probability ``scatter`` (fog:
   0.1, rain: 0.02; rain drops are larger and fewer) it reflects enough to be reported
-  instead of what lies behind it, if it is nearer than that and within 22 m (a droplet of
-  2 % reflectance at the detection threshold). The return moves along its beam to the
-  droplet, with the droplet's intensity (0.02); its fields (ring, ...) stay.
+  instead of what lies behind it, if it is nearer than that and within the range at which
+  a droplet of 2 % reflectance is at the detection threshold (22 m for the HDL-64E). The
+  return moves along its beam to the droplet, with the droplet's intensity (0.02); its
+  fields (ring, ...) stay.
 
 Beams that returned nothing in the recording (the sky) cannot be given echoes: a real
 sensor would show a few more. The randomness comes from ``seed`` only.
@@ -35,6 +38,7 @@ from numpy.typing import NDArray
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import intensity_scale
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.sensors import frame_sensor
 
 __all__ = ["SCATTER", "WEATHER_KINDS", "Weather", "WeatherKind", "extinction"]
 
@@ -46,8 +50,18 @@ SCATTER: dict[str, float] = {"fog": 0.1, "rain": 0.02}
 _THRESHOLD = 0.10 / 50.0**2  # reflectance / range² at the detection limit (HDL-64E spec)
 _CLEAR_AIR_MARGIN = 2.0  # the least a recorded return is assumed to exceed the threshold by
 _DROPLET_REFLECTANCE = 0.02
-_DROPLET_RANGE = math.sqrt(_DROPLET_REFLECTANCE / _THRESHOLD)  # about 22 m
 _MIN_RANGE = 0.9  # metres: nearer echoes are blocked by the housing (see BeamLayout)
+
+
+def _sensor_limits(frame: Frame) -> tuple[float, float]:
+    """(reflectance / range² at the detection limit, minimum range) of the frame's sensor:
+    its datasheet's (e.g. a 10 % target at 40 m for an OS1-64), the HDL-64E's when the
+    sensor is not known."""
+    sensor = frame_sensor(frame).sensor if len(frame.cloud) else None
+    if sensor is None:
+        return _THRESHOLD, _MIN_RANGE
+    reflectance, reach = sensor.detection
+    return reflectance / reach**2, sensor.min_range
 
 
 def extinction(visibility: float) -> float:
@@ -116,14 +130,16 @@ class Weather:
         xyz = frame.cloud.xyz.astype(np.float64)
         intensity = frame.cloud.intensity
         ranges = np.linalg.norm(xyz, axis=1)
-        floor = _CLEAR_AIR_MARGIN * _THRESHOLD * ranges**2
+        threshold, min_range = _sensor_limits(frame)
+        floor = _CLEAR_AIR_MARGIN * threshold * ranges**2
         reflectance = np.maximum(intensity / intensity_scale(frame.cloud.intensity), floor)
         transmitted = np.exp(-2.0 * self.alpha * ranges)
-        lost = reflectance * transmitted < _THRESHOLD * ranges**2
+        lost = reflectance * transmitted < threshold * ranges**2
         rng = np.random.default_rng([self.seed, len(xyz)])
         droplet = rng.exponential(1.0 / self.alpha, len(xyz))
         reported = rng.random(len(xyz)) < self.echo_probability
-        near = (droplet < ranges) & (droplet >= _MIN_RANGE) & (droplet <= _DROPLET_RANGE)
+        droplet_range = math.sqrt(_DROPLET_REFLECTANCE / threshold)
+        near = (droplet < ranges) & (droplet >= min_range) & (droplet <= droplet_range)
         echo = np.where(reported & near, droplet, np.nan)
         return lost, echo, (intensity * transmitted).astype(np.float32)
 

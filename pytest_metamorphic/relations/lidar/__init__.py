@@ -14,15 +14,23 @@ relation                          follow-up                            expected 
 :func:`outside_removal`           outside-ROI points removed           O == O'
 :func:`permutation_invariance`    points reordered                     O == O'
 :func:`duplication_invariance`    some points repeated                 O == O'
-:func:`rotation_equivariance`     cloud and ROI turned by θ            O turned by θ
-:func:`mirror_symmetry`           cloud and ROI mirrored (y -> -y)     O mirrored
-:func:`beam_loss`                 1-4 lasers return nothing            well-covered O kept
-:func:`packet_loss`               1-10 packets (azimuth blocks) lost   well-covered O kept
+:func:`rotation_equivariance`     cloud and ROI turned by θ            O turned by θ (*)
+:func:`mirror_symmetry`           cloud and ROI mirrored (y -> -y)     O mirrored (*)
+:func:`beam_loss`                 1-4 of the sensor's lasers dead      well-covered O kept (*)
+:func:`packet_loss`               1-10 of its packets lost             well-covered O kept (*)
 :func:`range_quantization`        ranges rounded to 5/10/20 cm         O kept
 :func:`object_removal`            one car/pedestrian/cyclist removed   the others kept
 :func:`object_insertion`          a real object put on free ground     it is found, others kept
 :func:`adverse_weather`           fog or rain of 200/100/50 m          well-covered O kept
 ================================  ===================================  ======================
+
+(*) Cars, pedestrians and cyclists only: ``unknown`` obstacles are not judged by these.
+Beam and packet loss need the frame's sensor
+(:func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`); insertion needs objects to
+insert (the frame's labels, or ``objects=``). Where a relation cannot act on a frame its
+follow-up is not applicable, and a relation that tested nothing in a whole test is
+reported so (``NothingTestedWarning``; ``--mt-strict-tested`` fails the test): every
+relation's checks count the obstacles they judged (the summary's *judged* column).
 
 MR1 follows Zhou & Sun (CACM 2019): 1000 points by default (the largest of their 10,
 100 and 1000) scattered outside the ROI, z and intensity uniform over the frame's ranges, "outside"

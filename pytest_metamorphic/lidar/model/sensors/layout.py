@@ -257,12 +257,16 @@ class BeamLayout(ScanPattern):
 def _firings(steps: int, azimuth_range: tuple[float, float] | None) -> NDArray[np.float64]:
     firing = np.arange(steps) * (2.0 * math.pi / steps)
     if azimuth_range is not None:
-        start, stop = (float(v) for v in azimuth_range)
-        if not (math.isfinite(start) and math.isfinite(stop) and start < stop):
-            raise InvalidArgument(f"azimuth_range={azimuth_range!r} needs start < stop")
-        wrapped = np.mod(firing - start, 2 * math.pi)
-        firing = firing[wrapped < stop - start]
+        firing = firing[_within(firing, azimuth_range)]
     return np.asarray(firing, dtype=np.float64)
+
+
+def _within(azimuth: NDArray[np.float64], azimuth_range: tuple[float, float]) -> NDArray[np.bool_]:
+    """Which azimuths lie in ``[start, stop)`` (radians, wrapping at 2π)."""
+    start, stop = (float(v) for v in azimuth_range)
+    if not (math.isfinite(start) and math.isfinite(stop) and start < stop):
+        raise InvalidArgument(f"azimuth_range={azimuth_range!r} needs start < stop")
+    return np.asarray(np.mod(azimuth - start, 2 * math.pi) < stop - start)
 
 
 def _directions(
@@ -349,10 +353,7 @@ class RosetteScanner(ScanPattern):
         azimuth = self.pointing[0] + horizontal
         elevation = self.pointing[1] + vertical
         if azimuth_range is not None:
-            start, stop = (float(v) for v in azimuth_range)
-            if not (math.isfinite(start) and math.isfinite(stop) and start < stop):
-                raise InvalidArgument(f"azimuth_range={azimuth_range!r} needs start < stop")
-            keep = np.mod(azimuth - start, 2 * math.pi) < stop - start
+            keep = _within(azimuth, azimuth_range)
             azimuth, elevation = azimuth[keep], elevation[keep]
         ring = np.zeros(len(azimuth), dtype=np.uint8)
         return Rays(_directions(azimuth, elevation), ring, azimuth)
