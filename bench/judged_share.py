@@ -5,8 +5,9 @@ A relation "passes" vacuously when it could not make a follow-up (no object to i
 lasers to lose), every follow-up equalled its source, or it judged no obstacle; the
 engine reports that as NOTHING TESTED (:func:`pytest_metamorphic.core.stats.nothing_tested`).
 Each run here is one derandomized ``@metamorphic`` test of every relation of
-``lidar_relations()`` (insertion with templates cut from rendered streets, for frames
-without labels), 3 sources, 1 follow-up each.
+``lidar_relations()`` (the ``"learned"`` tolerance profile for the learned model;
+insertion with templates cut from rendered streets, for frames without labels), 3
+sources, 1 follow-up each.
 
 * **own**: the pairs the project's examples run: the reference pipeline on two labelled
   KITTI sweeps and a rendered HDL-64E street, the scikit-learn detector on the KITTI
@@ -43,12 +44,13 @@ from examples.test_sklearn_detector import SklearnDetector  # noqa: E402
 from examples.test_your_recordings import (  # noqa: E402
     RECORDINGS,
     my_detector,
-    relations,
+    templates,
 )
 from pytest_metamorphic import MetamorphicViolation, metamorphic  # noqa: E402
 from pytest_metamorphic.core.stats import Recorder, nothing_tested, recording  # noqa: E402
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region  # noqa: E402
+from pytest_metamorphic.lidar.judging.tolerance import as_tolerance  # noqa: E402
 from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.model.sensors import HDL64E, OS1_128, VLP16  # noqa: E402
 from pytest_metamorphic.lidar.roi import corridor_roi  # noqa: E402
@@ -56,6 +58,7 @@ from pytest_metamorphic.lidar.synthetic import render  # noqa: E402
 from pytest_metamorphic.lidar.synthetic.layout import random_scene  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception import ReferencePerception  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation  # noqa: E402
+from pytest_metamorphic.relations.lidar import lidar_relations, object_insertion  # noqa: E402
 
 KITTI = conftest.SHARED_DATA / "kitti_openpcdet" / "training"
 SEARCH = settings(
@@ -88,14 +91,22 @@ def frame_sets() -> dict[str, list[Frame]]:
     }
 
 
+def relations(tolerance: str) -> list[Any]:
+    """The library with the given tolerance profile, insertion with the template library."""
+    profile = as_tolerance(tolerance)  # type: ignore[arg-type]
+    chosen = lidar_relations(tolerance=profile)
+    kept = [r for r in chosen if not r.name.startswith("an object inserted")]
+    return [*kept, object_insertion(objects=templates(), matcher=profile.kept)]
+
+
 def run(
-    system: Callable[[Frame], Any], frames: list[Frame]
+    system: Callable[[Frame], Any], frames: list[Frame], tolerance: str = "exact"
 ) -> tuple[dict[str, str | None], list[str]]:
     """Every relation on ``frames``: {relation: why it tested nothing, or None}, and the
     relations violated."""
     recorder = Recorder(followups=1, check_determinism=False, minimize_budget=0)
     violations = []
-    for mr in relations():
+    for mr in relations(tolerance):
 
         @SEARCH
         @metamorphic(source=st.sampled_from(frames), relations=[mr], followups=1)
@@ -145,7 +156,7 @@ def main() -> None:
     total_violations = 0
     started = time.perf_counter()
     for kind, name, system, frames in plan:
-        verdicts, violated = run(system, frames)
+        verdicts, violated = run(system, frames, "learned" if system is learned else "exact")
         total_violations += len(violated)
         where = frames[0].source.split("/")[-1] if kind == "other" else kind
         judged = sum(reason is None for reason in verdicts.values())
