@@ -162,11 +162,32 @@ def format_table(result: CampaignResult) -> list[str]:
         lines.append(_SCOPE_NOTE)
     if result.source_crashes:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
+    lines.extend(_not_applicable_lines(result))
     lines.append(describe_execution(result.execution))
     if result.examples:
         shown = result.examples[:_SHOWN_EXAMPLES]
         lines.append(f"first violations ({len(shown)} of the {len(result.examples)} kept):")
         lines.extend(f"  {_example_line(example, size_label(result))}" for example in shown)
+    return lines
+
+
+def _not_applicable_lines(result: CampaignResult) -> list[str]:
+    """Sizes at which some follow-ups could not be made; NOTHING TESTED where none was."""
+    lines = []
+    for size, counts in sorted(result.sizes.items()):
+        if not counts.not_applicable:
+            continue
+        label = f"{size_label(result)}={size}"
+        if counts.pairs == 0:
+            lines.append(
+                f"NOTHING TESTED at {label}: none of its {counts.not_applicable} follow-ups "
+                "could be made (not a pass)"
+            )
+        else:
+            lines.append(
+                f"{label}: {counts.not_applicable} follow-up(s) could not be made and are not "
+                "counted as pairs"
+            )
     return lines
 
 

@@ -11,7 +11,16 @@ from pytest_metamorphic.core.intervals import Rate, wilson
 
 __all__ = ["CampaignResult", "SizeCounts", "merge_results", "result_from_json", "tally"]
 
-_TALLIES = ("pairs", "fewer", "equal", "more", "violations", "crashes", "unjudged_changes")
+_TALLIES = (
+    "pairs",
+    "fewer",
+    "equal",
+    "more",
+    "violations",
+    "crashes",
+    "unjudged_changes",
+    "not_applicable",
+)
 
 
 @dataclass
@@ -25,6 +34,8 @@ class SizeCounts:
     violations: int = 0
     crashes: int = 0
     unjudged_changes: int = 0  # pairs that changed only outside the relation's scope
+    # follow-ups the transform could not make (no object to insert): never pairs, never run
+    not_applicable: int = 0
     # category -> [pairs where that category lost elements, kept count, gained]
     categories: dict[str, list[int]] = field(default_factory=dict)
 
@@ -48,6 +59,7 @@ class SizeCounts:
             "violations": self.violations,
             "crashes": self.crashes,
             "unjudged_changes": self.unjudged_changes,
+            **({"not_applicable": self.not_applicable} if self.not_applicable else {}),
             "categories": {k: list(v) for k, v in sorted(self.categories.items())},
         }
 
@@ -160,6 +172,9 @@ def tally(result: CampaignResult, record: dict[str, Any]) -> None:
         return
     for pair in record["pairs"]:
         counts = result.sizes.setdefault(pair["size"], SizeCounts())
+        if "not_applicable" in pair:
+            counts.not_applicable += 1
+            continue
         counts.pairs += 1
         if "crash" in pair:
             counts.crashes += 1

@@ -68,7 +68,7 @@ def run_source(campaign: Campaign, index: int, timeout: float | None = None) -> 
         values = [source_input] if first else []
         whats = [f"source {index}"] if first else []
         for (_, size, f), item in zip(chunk, drawn, strict=True):
-            if not isinstance(item, Exception):
+            if not isinstance(item, Exception) and not _skipped(item):
                 values.append(item[0])
                 whats.append(f"source {index}, size {size}, follow-up {f}")
         outcomes = iter(calls.run(values, whats))
@@ -85,6 +85,9 @@ def run_source(campaign: Campaign, index: int, timeout: float | None = None) -> 
         for (_, size, f), item in zip(chunk, drawn, strict=True):
             pair: dict[str, Any] = {"size": size, "followup": f}
             record["pairs"].append(pair)
+            if not isinstance(item, Exception) and _skipped(item):
+                pair["not_applicable"] = str(item[1]["not_applicable"])  # the system not run
+                continue
             record["sut_calls"] += 1
             if isinstance(item, Exception):
                 pair["crash"] = f"{type(item).__name__}: {item}"
@@ -99,6 +102,12 @@ def run_source(campaign: Campaign, index: int, timeout: float | None = None) -> 
             source = (source_input, source_output, n_source, source_categories)
             _judge(campaign, pair, source, item, followup_output, f)
     return record
+
+
+def _skipped(item: tuple[Any, Any]) -> bool:
+    """A follow-up the transform could not make (``Followup.not_applicable``)."""
+    params = item[1]
+    return isinstance(params, dict) and "not_applicable" in params
 
 
 def _judge(

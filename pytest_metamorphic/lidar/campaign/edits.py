@@ -50,8 +50,8 @@ def _templates(frame: Frame) -> tuple[ObjectTemplate, ...]:
 
 def insertion_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
     """One of the frame's own cars, pedestrians or cyclists inserted again, at
-    ``severity`` percent of the range it was seen at, at a random free place (none
-    edited when there is no such place)."""
+    ``severity`` percent of the range it was seen at, at a random free place (not
+    applicable, and not counted as a pair, when there is no such place)."""
     factor = severity / 100.0
     places = [
         (template, placement)
@@ -59,18 +59,20 @@ def insertion_followup(frame: Frame, severity: int, rng: np.random.Generator) ->
         for placement in free_placements(frame, template, limit=8, factors=(factor,))
     ]
     if not places:
-        return Followup(frame, params={"insert_object": None})
+        reason = "no object of the frame's own has a free place at that range"
+        return Followup.not_applicable(frame, reason)
     template, placement = places[int(rng.integers(len(places)))]
     insertion = InsertObject.onto(frame, template, placement)
     return Followup(insertion.apply(frame), params=insertion.params())
 
 
 def removal_followup(frame: Frame, severity: int, rng: np.random.Generator) -> Followup:
-    """The ``severity``-th nearest car, pedestrian or cyclist removed (none when the frame
-    has fewer)."""
+    """The ``severity``-th nearest car, pedestrian or cyclist removed (not applicable, and
+    not counted as a pair, when the frame has fewer)."""
     candidates = removal_candidates(frame)
     if len(candidates) < severity:
-        return Followup(frame, params={"remove_object": None})
+        reason = f"the frame has {len(candidates)} car(s), pedestrian(s) and cyclist(s)"
+        return Followup.not_applicable(frame, reason)
     removal = RemoveObject(candidates[severity - 1])
     return Followup(removal.apply(frame), params=removal.params())
 

@@ -271,3 +271,28 @@ def test_chart_columns_and_pixels_follow_the_counts(tmp_path: Path) -> None:
     blue = np.all(np.abs(pixels - [0x1F / 255, 0x77 / 255, 0xB4 / 255]) < 0.02, axis=-1)
     # Red: 25% + 50% of a column, blue: 50% + 50% (legend swatches are equal for both).
     assert red.sum() / blue.sum() == pytest.approx(0.75, rel=0.05)
+
+
+def test_follow_ups_that_cannot_be_made_are_not_pairs_and_say_so() -> None:
+    """A transform that cannot act on a source (no object to insert) gives
+    ``Followup.not_applicable``: the system is not run, no pair is counted, and a size at
+    which no follow-up could be made reads NOTHING TESTED, never 0 % of violations."""
+    from pytest_metamorphic import Followup
+    from pytest_metamorphic.reports.campaign import format_table
+
+    def only_small(scene: tuple[int, tuple[str, ...], int], size: int, rng: np.random.Generator):
+        if size > 10:
+            return Followup.not_applicable(scene, "nothing to insert at that size")
+        return followup(scene, size, rng)
+
+    system = Lossy()
+    result = run_campaign(dataclasses.replace(campaign(system, sources=5), followup=only_small))
+    assert (result.sizes[10].pairs, result.sizes[10].not_applicable) == (10, 0)
+    assert (result.sizes[100].pairs, result.sizes[100].not_applicable) == (0, 10)
+    assert system.calls == 5 + 10  # sources and the size-10 follow-ups only
+    lines = format_table(result)
+    assert any(
+        line.startswith("NOTHING TESTED at n=100: none of its 10 follow-ups") for line in lines
+    )
+    again = SizeCounts.from_json(result.sizes[100].to_json())
+    assert again.not_applicable == 10 and again.pairs == 0
