@@ -211,7 +211,14 @@ OTHER_SENSORS = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(OTHER_SENSORS))
+@pytest.mark.parametrize(
+    "name",
+    # DBSCAN ties takes a minute here: with the slow tests.
+    [
+        pytest.param(n, marks=pytest.mark.slow) if n == "DBSCAN ties" else n
+        for n in sorted(OTHER_SENSORS)
+    ],
+)
 def test_every_relation_on_other_sensors_recordings_and_renders(name: str) -> None:
     conftest.shared_data_path("nebula_velodyne")
     found = violations(name, OTHER_SENSORS[name](), other_sensor_frames(), examples=2)
