@@ -25,6 +25,7 @@ Prints a line per run that tested nothing, with the reason, and ends with
 
 from __future__ import annotations
 
+import importlib
 import sys
 import time
 import warnings
@@ -40,12 +41,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import conftest  # noqa: E402
-from examples.test_sklearn_detector import SklearnDetector  # noqa: E402
-from examples.test_your_recordings import (  # noqa: E402
-    RECORDINGS,
-    my_detector,
-    templates,
-)
+
+# The examples are loaded by name: mypy checks them as files of their own (examples/ is no
+# package), and a static import would make it see each twice.
+_sklearn_example = importlib.import_module("examples.test_sklearn_detector")
+_your_recordings = importlib.import_module("examples.test_your_recordings")
+SklearnDetector = _sklearn_example.SklearnDetector
+RECORDINGS = _your_recordings.RECORDINGS
+my_detector = _your_recordings.my_detector
+templates = _your_recordings.templates
 from pytest_metamorphic import MetamorphicViolation, metamorphic  # noqa: E402
 from pytest_metamorphic.core.stats import Recorder, nothing_tested, recording  # noqa: E402
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,7 +68,7 @@ def read_lanelet2(
         Not OSM XML, no lanelet, or a lanelet whose ``left``/``right`` way or their
         nodes are missing (the message names the file and the lanelet).
     """
-    data = read_osm(path)
+    data = read_osm(Path(path))
     xy = _node_positions(data, origin)
     ways = {way.id: way for way in data.ways}
     lanelets = []

@@ -126,7 +126,7 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
         raise DataError(f"{where}: view, range and bearing must be finite, range > 0", path=source)
     return ObjectTemplate(
         label=label,
-        size=size,  # type: ignore[arg-type]
+        size=size,
         vertices=vertices.astype(np.float64),
         faces=faces.astype(np.int64),
         intensity=intensity.astype(np.float32),

@@ -255,10 +255,10 @@ class BeamLayout(ScanPattern):
 
 
 def _firings(steps: int, azimuth_range: tuple[float, float] | None) -> NDArray[np.float64]:
-    firing = np.arange(steps) * (2.0 * math.pi / steps)
+    firing = np.arange(steps, dtype=np.float64) * (2.0 * math.pi / steps)
     if azimuth_range is not None:
         firing = firing[_within(firing, azimuth_range)]
-    return np.asarray(firing, dtype=np.float64)
+    return firing
 
 
 def _within(azimuth: NDArray[np.float64], azimuth_range: tuple[float, float]) -> NDArray[np.bool_]:
