@@ -30,6 +30,7 @@ _LAZY: dict[str, tuple[str, str | None]] = {
         "NondeterministicSystemError",
     ),
     "SystemUnderTestCrash": ("pytest_metamorphic.core.errors", "SystemUnderTestCrash"),
+    "NothingTestedWarning": ("pytest_metamorphic.core.errors", "NothingTestedWarning"),
 }
 
 __all__ = [  # noqa: RUF022 - grouped: API, relations, errors
@@ -45,6 +46,7 @@ __all__ = [  # noqa: RUF022 - grouped: API, relations, errors
     "MetamorphicError",
     "MetamorphicViolation",
     "NondeterministicSystemError",
+    "NothingTestedWarning",
     "SystemUnderTestCrash",
     "__version__",
 ]
@@ -63,6 +65,7 @@ if TYPE_CHECKING:  # pragma: no cover
         MetamorphicError,
         MetamorphicViolation,
         NondeterministicSystemError,
+        NothingTestedWarning,
         SystemUnderTestCrash,
     )
     from pytest_metamorphic.core.relations import Relation, Verdict
