@@ -213,9 +213,9 @@ OTHER_SENSORS = {
 
 @pytest.mark.parametrize(
     "name",
-    # DBSCAN ties takes a minute here: with the slow tests.
+    # The clustering detectors take 20-60 s here: with the slow tests.
     [
-        pytest.param(n, marks=pytest.mark.slow) if n == "DBSCAN ties" else n
+        pytest.param(n, marks=pytest.mark.slow) if n in DETECTORS else n
         for n in sorted(OTHER_SENSORS)
     ],
 )
