@@ -114,3 +114,19 @@ def test_a_corridor_follows_the_ego_path_and_the_whole_sweep_is_explicit() -> No
         corridor_roi([[0, 0]])
     with pytest.raises(InvalidArgument, match="width"):
         corridor_roi(width=-1)
+
+
+def test_a_hostile_lanelet2_file_is_refused_by_name(tmp_path: Path) -> None:
+    bomb = tmp_path / "bomb.osm"
+    bomb.write_text(
+        '<?xml version="1.0"?><!DOCTYPE osm [<!ENTITY a "aaaaaaaaaa">]>'
+        '<osm version="0.6"><node id="1" lat="0" lon="0"><tag k="x" v="&a;"/></node></osm>'
+    )
+    with pytest.raises(DataError, match=r"bomb\.osm.*DOCTYPE"):
+        read_lanelet2(bomb)
+    fifo = tmp_path / "map.fifo"
+    import os
+
+    os.mkfifo(fifo)
+    with pytest.raises(DataError, match="map.fifo"):
+        read_lanelet2(fifo)
