@@ -25,7 +25,7 @@ from pytest_metamorphic.lidar.followups.faults import (
 from pytest_metamorphic.lidar.followups.perturb import SEED_BITS
 from pytest_metamorphic.lidar.followups.weather import WEATHER_KINDS, Weather, WeatherKind
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
-from pytest_metamorphic.lidar.model.sensors import estimate_sensor, frame_sensor
+from pytest_metamorphic.lidar.model.sensors import SensorEstimate, estimate_sensor, frame_sensor
 from pytest_metamorphic.strategies._noise import _check_frame
 
 __all__ = ["dead_beams", "lost_packets", "quantized_ranges", "weathered_frames"]
@@ -62,15 +62,7 @@ def dead_beams(
         )
         lasers = estimate.lasers
         if estimate.rings is None or len(lasers) < 2:
-            why = (
-                f"{estimate.sensor.short_name} has no lasers to lose"
-                if estimate.sensor is not None and not estimate.sensor.has_rings
-                else f"the lasers cannot be known: {estimate.describe()}; pass sensor= to "
-                "the Frame or FrameCatalog"
-                if estimate.rings is None
-                else "the frame has returns of fewer than 2 lasers"
-            )
-            return st.just(Followup.not_applicable(frame, f"beam loss: {why}"))
+            return st.just(Followup.not_applicable(frame, f"beam loss: {_no_lasers(estimate)}"))
         rings = st.lists(
             st.sampled_from(lasers), min_size=1, max_size=min(limit, len(lasers) - 1), unique=True
         )
@@ -83,6 +75,18 @@ def dead_beams(
 
     # The sensor is identified when the first example is drawn, not when the strategy is made.
     return st.deferred(beams)
+
+
+def _no_lasers(estimate: SensorEstimate) -> str:
+    """Why beam loss cannot act on a frame (for the report)."""
+    if estimate.sensor is not None and not estimate.sensor.has_rings:
+        return f"{estimate.sensor.short_name} has no lasers to lose"
+    if estimate.rings is None:
+        return (
+            f"the lasers cannot be known: {estimate.describe()}; pass sensor= to the Frame "
+            "or FrameCatalog"
+        )
+    return "the frame has returns of fewer than 2 lasers"
 
 
 def _roi_bearings(frame: Any) -> list[int]:

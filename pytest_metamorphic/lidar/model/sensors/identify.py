@@ -197,6 +197,11 @@ def _azimuth(xyz: NDArray[np.float32]) -> NDArray[np.float64]:
     return np.mod(np.arctan2(xyz[:, 1].astype(np.float64), xyz[:, 0]), 2 * math.pi)
 
 
+def _run_starts(xyz: NDArray[np.float32]) -> NDArray[np.intp]:
+    """Where the azimuth drops by more than π: the starts of a laser's revolution."""
+    return np.flatnonzero(np.diff(_azimuth(xyz)) < -math.pi) + 1
+
+
 def rings_from_scan_order(xyz: NDArray[np.float32], lasers: int) -> NDArray[np.int64] | None:
     """Rings of a sweep stored laser by laser, or None when it is not stored that way.
 
@@ -207,7 +212,7 @@ def rings_from_scan_order(xyz: NDArray[np.float32], lasers: int) -> NDArray[np.i
     """
     if len(xyz) < 2 * lasers:
         return None
-    starts = np.flatnonzero(np.diff(_azimuth(xyz)) < -math.pi) + 1
+    starts = _run_starts(xyz)
     if len(starts) != lasers - 1:
         return None
     bounds = np.concatenate([[0], starts, [len(xyz)]])
@@ -256,8 +261,10 @@ def estimate_sensor(cloud: PointCloud, *, sensor: SensorLike = None) -> SensorEs
         rings = np.asarray(cloud.fields[field]).astype(np.int64)
         model, fit = _best_fit(cloud.xyz, rings)
         return SensorEstimate(model, "ring field", fit, rings, field)
+    # The number of revolutions in storage order picks the candidates: counted once.
+    runs = len(_run_starts(cloud.xyz)) + 1 if len(cloud) > 1 else 0
     for model in SENSORS.values():
-        if model.has_rings:
+        if model.has_rings and model.lasers == runs:
             ordered = rings_from_scan_order(cloud.xyz, model.lasers)
             if ordered is not None:
                 return SensorEstimate(model, "scan order", 1.0, ordered)
