@@ -21,7 +21,8 @@ from __future__ import annotations
 import json
 import os
 import stat
-from collections.abc import Mapping
+import tempfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import IO, Any
 
@@ -36,6 +37,7 @@ __all__ = [
     "open_regular_fd",
     "read_json",
     "read_regular",
+    "write_atomically",
 ]
 
 MAX_JSON_BYTES = 64 * 1024 * 1024
@@ -280,3 +282,18 @@ def _json_type(value: object) -> str:
         if type(value) is kind:
             return name
     return type(value).__name__
+
+
+def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
+    """Create or replace ``path`` with what ``write(tmp)`` writes to a temporary sibling,
+    renamed into place: an interruption never leaves half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

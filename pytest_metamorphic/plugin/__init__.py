@@ -24,10 +24,13 @@ from pytest_metamorphic.plugin.campaigns import (
     CAMPAIGN_PROPERTY,
     CAMPAIGN_RESULT,
     CAMPAIGNS,
+    GATES,
     campaign_of,
+    campaign_property,
     claim_campaign_name,
-    merge_campaign,
+    gate_on_report,
     one_item_per_campaign,
+    parametrize_shards,
     run_campaign_shard,
     slug,
     start_cluster_early,
@@ -62,11 +65,16 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[OPTIONS] = parse_options(config)
     config.stash[_SUMMARY] = SessionSummary()
     config.stash[CAMPAIGNS] = {}
+    config.stash[GATES] = {}
     config.stash[_REPLAY_RESULTS] = []
     config.stash[_ARTIFACT_LIST] = []
     config.stash[_REPLAYS] = _load_replays(config.stash[OPTIONS].replay)
     config.pluginmanager.register(_SessionReporter(config), "pytest-metamorphic-reporter")
     start_cluster_early(config)
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    parametrize_shards(metafunc)
 
 
 def _load_replays(folders: tuple[Path, ...]) -> list[Artifact]:
@@ -101,30 +109,42 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if campaign_of(item) is not None:
             item.add_marker("metamorphic")
             claim_campaign_name(owners, item)
-            if not enabled:
+            if not enabled and not _replayed_here(item):
                 item.add_marker(pytest.mark.skip(reason="campaign: run with --mt-campaign"))
 
 
 def _select_replayed(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Keep only the tests that saved the replayed artifacts."""
+    """Keep only the tests that saved the replayed artifacts (one shard of a campaign)."""
     wanted = {artifact.nodeid for artifact in config.stash[_REPLAYS]}
-    collected = {item.nodeid for item in items}
-    missing = sorted(wanted - collected)
+    keep: list[pytest.Item] = []
+    found: set[str] = set()
+    for item in items:
+        name = _replay_name(item)
+        if name in wanted and name not in found:
+            found.add(name)
+            keep.append(item)
+    missing = sorted(wanted - found)
     if missing:
         folders = [str(a.folder) for a in config.stash[_REPLAYS] if a.nodeid in missing]
         raise pytest.UsageError(
             f"--mt-replay: the test(s) {missing} that saved {folders} were not collected; "
             "run pytest from the same root directory, with the test file on the command line"
         )
-    keep = [item for item in items if item.nodeid in wanted]
-    dropped = [item for item in items if item.nodeid not in wanted]
+    dropped = [item for item in items if item not in keep]
     if dropped:
         config.hook.pytest_deselected(items=dropped)
     items[:] = keep
 
 
+def _replay_name(item: pytest.Item) -> str:
+    """The node id an artifact names: a campaign's cases name its test without the shard
+    (shards follow the number of workers)."""
+    return item.nodeid.split("[")[0] if campaign_of(item) is not None else item.nodeid
+
+
 def _replayed_here(item: pytest.Item) -> list[Any]:
-    return [a for a in item.config.stash[_REPLAYS] if a.nodeid == item.nodeid]
+    replays = item.config.stash[_REPLAYS]
+    return [a for a in replays if a.nodeid == _replay_name(item)] if replays else []
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -133,15 +153,9 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     artifacts = _replayed_here(pyfuncitem)
     if not artifacts:
         return None
-    spec = getattr(pyfuncitem.obj, "_metamorphic", None)
-    if spec is None:
-        raise pytest.UsageError(f"--mt-replay: {pyfuncitem.nodeid} is not a @metamorphic test")
     from pytest_metamorphic.core.errors import MetamorphicViolation
-    from pytest_metamorphic.reports.replay import replay
 
-    names = list(inspect.signature(spec.function).parameters)[1:]
-    fixtures = {name: pyfuncitem.funcargs[name] for name in names}
-    results = [replay(artifact, spec, fixtures) for artifact in artifacts]
+    results = _replay_all(pyfuncitem, artifacts)
     pyfuncitem.stash[_ITEM_REPLAYS] = results
     failing = [result for result in results if result.still_fails]
     if failing:
@@ -154,13 +168,33 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     return True
 
 
+def _replay_all(item: pytest.Function, artifacts: list[Any]) -> list[Any]:
+    """Re-run each artifact against the test's system: a ``@metamorphic`` test's, or a
+    campaign's (its cases)."""
+    campaign = campaign_of(item)
+    if campaign is not None:
+        from pytest_metamorphic.reports.campaign_cases import replay_case
+
+        return [replay_case(artifact, campaign.campaign) for artifact in artifacts]
+    spec = getattr(item.obj, "_metamorphic", None)
+    if spec is None:
+        raise pytest.UsageError(f"--mt-replay: {item.nodeid} is not a @metamorphic test")
+    from pytest_metamorphic.reports.replay import replay
+
+    names = list(inspect.signature(spec.function).parameters)[1:]
+    fixtures = {name: item.funcargs[name] for name in names}
+    return [replay(artifact, spec, fixtures) for artifact in artifacts]
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
     __tracebackhide__ = True
+    if _replayed_here(item):
+        return (yield)
     if campaign_of(item) is not None:
         run_campaign_shard(item)
         return (yield)
-    if not _is_metamorphic(item) or _replayed_here(item):
+    if not _is_metamorphic(item):
         return (yield)
     options = item.config.stash[OPTIONS]
     recorder = Recorder(
@@ -224,9 +258,10 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
                 item.user_properties.append((ARTIFACT_PROPERTY, str(folder)))
         for replayed in item.stash.get(_ITEM_REPLAYS, []):
             item.user_properties.append((REPLAY_PROPERTY, json.dumps(replayed.to_json())))
-        result = item.stash.get(CAMPAIGN_RESULT, None)
-        if result is not None:
-            item.user_properties.append((CAMPAIGN_PROPERTY, json.dumps(result.to_json())))
+        campaign = campaign_property(item)
+        if campaign is not None:
+            item.user_properties.append(campaign)
+            result = item.stash[CAMPAIGN_RESULT]
             for size, counts in sorted(result.sizes.items()):
                 item.user_properties.append((f"mt.campaign.n{size}.pairs", counts.pairs))
                 item.user_properties.append((f"mt.campaign.n{size}.violations", counts.violations))
@@ -243,6 +278,7 @@ class _SessionReporter:
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
 
+    @pytest.hookimpl(tryfirst=True)  # a failed gate fails the report before others see it
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         if report.when != "call":
             return
@@ -256,9 +292,7 @@ class _SessionReporter:
                 self.config.stash[_REPLAY_RESULTS].append(json.loads(str(value)))
         blob = next((v for k, v in report.user_properties if k == CAMPAIGN_PROPERTY), None)
         if blob is not None:
-            from pytest_metamorphic.core.campaign import result_from_json
-
-            merge_campaign(self.config, result_from_json(json.loads(str(blob))))
+            gate_on_report(self.config, report, str(blob))
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if hasattr(self.config, "workerinput"):
@@ -290,6 +324,36 @@ class _SessionReporter:
                     terminalreporter.write_line(line)
                 reports = self.config.stash[OPTIONS].campaign_dir / slug(name)
                 terminalreporter.write_line(f"reports and logs: {reports}/")
+                for line in self._case_lines(name):
+                    terminalreporter.write_line(line)
+                for line in self._gate_lines(name):
+                    terminalreporter.write_line(line, bold=True)
+
+    def _case_lines(self, name: str) -> list[str]:
+        state = self.config.stash[GATES].get(name)
+        if state is None or not state.cases:
+            return []
+        saved = [case for case in state.cases if case.folder]
+        lines = [f"violation cases ({len(saved)} saved; replay one: pytest --mt-replay <folder>):"]
+        lines += [f"  {case.folder}" for case in saved]
+        lines += [
+            f"  source {case.source}, size {case.size}, follow-up {case.followup}: not saved: "
+            f"{case.note}"
+            for case in state.cases
+            if not case.folder
+        ]
+        return lines
+
+    def _gate_lines(self, name: str) -> list[str]:
+        state = self.config.stash[GATES].get(name)
+        if state is not None and state.verdict is not None:
+            return list(state.verdict.lines())
+        seen = 0 if state is None else state.seen
+        expected = "?" if state is None else state.expected
+        return [
+            f"gate NOT JUDGED: campaign {name!r}: {seen} of {expected} shard test(s) "
+            "reported a result (a shard failed, was deselected, or the run was interrupted)"
+        ]
 
     def pytest_sessionfinish(self) -> None:
         if hasattr(self.config, "workerinput"):
@@ -297,5 +361,16 @@ class _SessionReporter:
         options = self.config.stash[OPTIONS]
         if options.report is not None:
             self.config.stash[_SUMMARY].write_json(options.report)
-        for name, result in self.config.stash[CAMPAIGNS].items():
-            write_campaign_reports(result, options.campaign_dir / slug(name))
+        gates = self.config.stash[GATES]
+        judged = [
+            (result, gates[name].verdict if name in gates else None)
+            for name, result in self.config.stash[CAMPAIGNS].items()
+        ]
+        for result, verdict in judged:
+            name = result.header["campaign"]
+            cases = gates[name].cases if name in gates else []
+            write_campaign_reports(result, options.campaign_dir / slug(name), verdict, cases)
+        if judged and options.job_summary is not None:
+            from pytest_metamorphic.reports.campaign import write_job_summary
+
+            write_job_summary(options.job_summary, judged, options.campaign_dir)

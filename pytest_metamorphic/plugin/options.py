@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -10,10 +11,18 @@ import pytest
 
 from pytest_metamorphic.core.stats import DEFAULT_FOLLOWUPS, DEFAULT_MINIMIZE_BUDGET
 
-__all__ = ["DEFAULT_ARTIFACTS", "OPTIONS", "Options", "add_options", "parse_options"]
+__all__ = [
+    "DEFAULT_ARTIFACTS",
+    "DEFAULT_CAMPAIGN_CASES",
+    "OPTIONS",
+    "Options",
+    "add_options",
+    "parse_options",
+]
 
 OPTIONS = pytest.StashKey["Options"]()
 DEFAULT_ARTIFACTS = Path("mt-artifacts")
+DEFAULT_CAMPAIGN_CASES = 2  # violations per size saved as artifacts by a campaign
 
 
 @dataclass(frozen=True)
@@ -31,6 +40,9 @@ class Options:
     dask: str | None = None
     dask_batch: int | None = None
     strict_tested: bool = False
+    baseline: Path | None = None
+    job_summary: Path | None = None
+    campaign_cases: int = DEFAULT_CAMPAIGN_CASES
 
 
 def add_options(parser: pytest.Parser) -> None:
@@ -68,6 +80,29 @@ def add_options(parser: pytest.Parser) -> None:
         default=None,
         metavar="DIR",
         help="where campaigns write logs and reports (ini: mt_campaign_dir; default mt-campaigns)",
+    )
+    group.addoption(
+        "--mt-baseline",
+        default=None,
+        metavar="PATH",
+        help="compare each campaign with its report under PATH (a campaign folder kept "
+        "from another run, e.g. main's, or one report.json): a rate significantly worse "
+        "fails it (ini: mt_baseline)",
+    )
+    group.addoption(
+        "--mt-campaign-cases",
+        default=None,
+        metavar="K",
+        help="violations per size a campaign saves as replayable artifacts, reduced "
+        f"within --mt-minimize-budget (ini: mt_campaign_cases; default "
+        f"{DEFAULT_CAMPAIGN_CASES}; 0: none)",
+    )
+    group.addoption(
+        "--mt-job-summary",
+        default=None,
+        metavar="PATH",
+        help="append a Markdown summary of the campaigns and their gates to PATH (default: "
+        "$GITHUB_STEP_SUMMARY when GitHub Actions sets it)",
     )
     group.addoption(
         "--mt-resume",
@@ -146,6 +181,8 @@ def add_options(parser: pytest.Parser) -> None:
         type="bool",
         default=False,
     )
+    parser.addini("mt_baseline", "campaign reports to compare with", default=None)
+    parser.addini("mt_campaign_cases", "violations per size a campaign saves", default=None)
     parser.addini("mt_dask", "Dask scheduler address or local:N for campaigns", default=None)
     parser.addini("mt_dask_batch", "sources per Dask task", default=None)
     parser.addini("mt_timeout", "seconds one call of the system under test may take", default=None)
@@ -215,7 +252,51 @@ def parse_options(config: pytest.Config) -> Options:
         strict_tested=bool(
             config.getoption("mt_strict_tested") or config.getini("mt_strict_tested")
         ),
+        baseline=_baseline_option(config, campaign),
+        job_summary=_job_summary_option(config),
+        campaign_cases=_cases_option(config),
     )
+
+
+def _baseline_option(config: pytest.Config, campaign: bool) -> Path | None:
+    raw, source = config.getoption("mt_baseline"), "--mt-baseline"
+    if raw is None:
+        raw, source = config.getini("mt_baseline") or None, "ini mt_baseline"
+    if raw is None:
+        return None
+    if source.startswith("--") and not campaign:
+        raise pytest.UsageError("--mt-baseline compares campaigns: give --mt-campaign too")
+    path = Path(raw)
+    if path.exists() and not (path.is_dir() or path.is_file()):
+        raise pytest.UsageError(f"{source}={path} is neither a folder nor a report file")
+    # A missing path is not an error: the first run on main has no baseline yet; each
+    # campaign's gate then says "not compared: no baseline at ...".
+    return path
+
+
+def _job_summary_option(config: pytest.Config) -> Path | None:
+    raw = config.getoption("mt_job_summary") or os.environ.get("GITHUB_STEP_SUMMARY") or None
+    if raw is None:
+        return None
+    path = Path(raw)
+    if path.is_dir():
+        raise pytest.UsageError(f"--mt-job-summary={path} is a directory; give a file path")
+    return path
+
+
+def _cases_option(config: pytest.Config) -> int:
+    raw, source = config.getoption("mt_campaign_cases"), "--mt-campaign-cases"
+    if raw is None:
+        raw, source = config.getini("mt_campaign_cases"), "ini mt_campaign_cases"
+    if raw in (None, ""):
+        return DEFAULT_CAMPAIGN_CASES
+    try:
+        cases = int(raw)
+    except (TypeError, ValueError):
+        raise pytest.UsageError(f"{source}={raw!r} must be an integer") from None
+    if not 0 <= cases <= 1000:
+        raise pytest.UsageError(f"{source}={cases} must be between 0 and 1000")
+    return cases
 
 
 def _dask_options(config: pytest.Config, campaign: bool) -> tuple[str | None, int | None]:

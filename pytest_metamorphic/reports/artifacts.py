@@ -233,7 +233,12 @@ def _injected_points(value: Any) -> Any:
 
 
 def write_artifact(
-    record: Any, folder: str | os.PathLike[str], *, status: str, sut_calls: int | None = None
+    record: Any,
+    folder: str | os.PathLike[str],
+    *,
+    status: str,
+    sut_calls: int | None = None,
+    extra: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write one violation's artifact folder atomically (replacing an older one).
 
@@ -247,6 +252,8 @@ def write_artifact(
         ``"found"`` (first sight, before shrinking) or ``"final"``.
     sut_calls : int, optional
         SUT calls the test had made when the violation was raised.
+    extra : mapping, optional
+        More JSON-ready entries for the record (a campaign case's ``"campaign"``).
 
     Returns
     -------
@@ -257,7 +264,7 @@ def write_artifact(
     return write_folder_atomically(
         target,
         lambda staging: _fill(
-            record, staging, status=status, sut_calls=sut_calls, final_path=target
+            record, staging, status=status, sut_calls=sut_calls, final_path=target, extra=extra
         ),
     )
 
@@ -289,7 +296,13 @@ def _swap_in(staging: Path, target: Path) -> None:
 
 
 def _fill(
-    record: Any, folder: Path, *, status: str, sut_calls: int | None, final_path: Path
+    record: Any,
+    folder: Path,
+    *,
+    status: str,
+    sut_calls: int | None,
+    final_path: Path,
+    extra: Mapping[str, Any] | None = None,
 ) -> None:
     followup = record.minimal_followup
     source_spec = encode_input(record.source, folder, "source")
@@ -376,6 +389,7 @@ def _fill(
         "picture_note": picture_note,
         "aeb": aeb,
         "replay": f"pytest --mt-replay {final_path}",
+        **to_jsonable(dict(extra or {})),
     }
     files = sorted(p.name for p in folder.iterdir())
     document["files"] = [*files, RECORD]

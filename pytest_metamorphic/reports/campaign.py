@@ -1,25 +1,36 @@
-"""Campaign reports: the paper's table, Markdown, JSON and a Fig. 3-style chart."""
+"""Campaign reports: the paper's table, the gate's verdict, violations grouped by
+obstacle, Markdown, JSON, a CI job summary; the chart is :mod:`.campaign_chart`."""
 
 from __future__ import annotations
 
 import json
 import os
-import tempfile
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.campaign import CampaignResult
+from pytest_metamorphic.core.campaign.results import FATE_ORDER
+from pytest_metamorphic.core.files import write_atomically
 from pytest_metamorphic.core.intervals import wilson
+from pytest_metamorphic.reports.campaign_chart import (
+    CHART_NAME,
+    ChartColumn,
+    chart_columns,
+    write_chart,
+)
 
 __all__ = [
+    "CHART_NAME",
     "ChartColumn",
     "chart_columns",
     "describe_execution",
     "format_table",
+    "grouped_violations",
+    "job_summary",
     "to_markdown",
     "write_chart",
+    "write_job_summary",
     "write_json",
     "write_markdown",
 ]
@@ -84,6 +95,7 @@ def _category_rows(result: CampaignResult) -> list[list[str]]:
                     str(size),
                     category,
                     str(total),
+                    _cell(min(counts.category_violations.get(category, 0), total), total),
                     _cell(lost, total),
                     _cell(kept, total),
                     _cell(gained, total),
@@ -92,15 +104,93 @@ def _category_rows(result: CampaignResult) -> list[list[str]]:
     return rows
 
 
+def _category_header(result: CampaignResult) -> list[str]:
+    return [size_label(result), "category", "pairs", "violating", "fewer", "same", "more"]
+
+
 def _status(result: CampaignResult) -> str:
     done, total = len(result.sources_done), result.header["sources"]
     state = "complete" if result.complete else f"PARTIAL: {done} of {total} sources"
+    distinct = result.distinct_inputs
+    inputs = "" if distinct == done else f" ({distinct} distinct source inputs)"
     return (
         f"campaign {result.header['campaign']!r}, seed {result.header['seed']}, "
-        f"{done} sources x {len(result.sizes)} sizes x {result.header['followups']} follow-up(s) "
-        f"({state}); {result.sut_calls} SUT calls, {result.sut_calls_saved} saved by reusing "
-        f"source outputs; rates with Wilson 95% intervals"
+        f"{done} sources{inputs} x {len(result.sizes)} sizes x {result.header['followups']} "
+        f"follow-up(s) ({state}); {result.sut_calls} SUT calls, {result.sut_calls_saved} "
+        f"saved by reusing source outputs; rates with Wilson 95% intervals"
     )
+
+
+def _fate_lines(result: CampaignResult) -> list[str]:
+    """Per size, the violating pairs by what became of the obstacles they blame."""
+    lines = []
+    for size, counts in sorted(result.sizes.items()):
+        if not counts.violations or not counts.fates:
+            continue
+        order = [f for f in FATE_ORDER if f in counts.fates]
+        order += sorted(f for f in counts.fates if f not in FATE_ORDER)
+        parts = ", ".join(f"{counts.fates[fate]} {fate}" for fate in order)
+        lines.append(f"{size_label(result)}={size}: {counts.violations} violating pair(s): {parts}")
+    return lines
+
+
+def grouped_violations(result: CampaignResult) -> list[dict[str, Any]]:
+    """The kept violations grouped by source and blamed element, most frequent first.
+
+    Each group: ``source``, ``index`` (the element's, None when the relation names none),
+    ``what`` (the element, or the explanation), ``fates`` (fate -> pairs), ``sizes``
+    (size -> pairs) and ``count`` (pairs).
+    """
+    groups: dict[tuple[int, int, str], dict[str, Any]] = {}
+    for example in result.examples:
+        violated = example.get("violated") or [
+            {"what": str(example.get("explanation", "")).split("; ")[0][:160]}
+        ]
+        for element in violated:
+            index = element.get("index")
+            key = (int(example["source"]), -1 if index is None else int(index), element["what"])
+            group = groups.setdefault(
+                key,
+                {
+                    "source": key[0],
+                    "index": index,
+                    "what": str(key[2]),
+                    "fates": {},
+                    "sizes": {},
+                    "count": 0,
+                },
+            )
+            group["count"] += 1
+            size = int(example["size"])
+            group["sizes"][size] = group["sizes"].get(size, 0) + 1
+            fate = element.get("fate")
+            if fate:
+                group["fates"][fate] = group["fates"].get(fate, 0) + 1
+    return sorted(groups.values(), key=lambda g: (-g["count"], g["source"], g["what"]))
+
+
+def _group_line(group: dict[str, Any], label: str) -> str:
+    sizes = ", ".join(f"{label}={size}: {n}" for size, n in sorted(group["sizes"].items()))
+    if group["index"] is None:
+        element = f"source {group['source']}: {group['what']}"
+    else:
+        element = f"source {group['source']}, element #{group['index']} ({group['what']})"
+    fates = ", ".join(f"{fate} in {n}" for fate, n in group["fates"].items())
+    how = f"{fates} of" if fates else "violated in"
+    return f"{element}: {how} {group['count']} pair(s) ({sizes})"
+
+
+def _violation_lines(result: CampaignResult, limit: int | None) -> list[str]:
+    groups = grouped_violations(result)
+    if not groups:
+        return []
+    shown = groups if limit is None else groups[:limit]
+    kept = len(result.examples)
+    head = (
+        f"violations by obstacle ({len(shown)} of {len(groups)} group(s), from the first "
+        f"{result.keep_examples} violating pairs of each {size_label(result)}: {kept} kept):"
+    )
+    return [head, *(f"  {_group_line(group, size_label(result))}" for group in shown)]
 
 
 def describe_execution(entries: list[dict[str, Any]]) -> str:
@@ -153,21 +243,21 @@ def _align(rows: list[list[str]]) -> list[str]:
 def format_table(result: CampaignResult) -> list[str]:
     """Terminal lines: the paper's table per n, then the per-category breakdown."""
     lines = [_status(result), *_align([_header(result), *_rows(result)])]
+    lines.extend(_fate_lines(result))
     categories = _category_rows(result)
     if categories:
-        lines.append("per category (pairs whose count of that category fell / stayed / rose):")
-        heading = [size_label(result), "category", "pairs", "fewer", "same", "more"]
-        lines.extend(_align([heading, *categories]))
+        lines.append(
+            "per category (pairs holding one; violating: a violation blames one; fewer / "
+            "same / more: that category's count fell / stayed / rose):"
+        )
+        lines.extend(_align([_category_header(result), *categories]))
     if _scoped(result):
         lines.append(_SCOPE_NOTE)
     if result.source_crashes:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
     lines.extend(_not_applicable_lines(result))
     lines.append(describe_execution(result.execution))
-    if result.examples:
-        shown = result.examples[:_SHOWN_EXAMPLES]
-        lines.append(f"first violations ({len(shown)} of the {len(result.examples)} kept):")
-        lines.extend(f"  {_example_line(example, size_label(result))}" for example in shown)
+    lines.extend(_violation_lines(result, _SHOWN_EXAMPLES))
     return lines
 
 
@@ -191,143 +281,116 @@ def _not_applicable_lines(result: CampaignResult) -> list[str]:
     return lines
 
 
-def _example_line(example: dict[str, Any], label: str) -> str:
-    return (
-        f"source {example['source']}, {label}={example['size']}, "
-        f"follow-up {example['followup']}: "
-        f"{example.get('explanation', '')}"
-    )
-
-
 def _markdown_table(header: list[str], rows: list[list[str]]) -> str:
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     out.extend("| " + " | ".join(row) + " |" for row in rows)
     return "\n".join(out)
 
 
-def to_markdown(result: CampaignResult) -> str:
-    parts = [f"# Campaign {result.header['campaign']}", "", _status(result), ""]
+def _gate_markdown(verdict: Any) -> list[str]:
+    if verdict is None:
+        return ["**Gate not judged** (a shard failed or the run was interrupted)."]
+    state = "passed" if verdict.passed else "FAILED"
+    parts = [f"**Gate {state}** ({verdict.gate.describe()}):", ""]
+    for check in verdict.checks:
+        mark = "ok" if check.passed else "**FAIL**"
+        parts.append(f"- {mark} {check.lines[0]}")
+        parts.extend(f"  - {line}" for line in check.lines[1:])
+    return parts
+
+
+def to_markdown(
+    result: CampaignResult,
+    verdict: Any = None,
+    *,
+    chart: bool = True,
+    cases: Sequence[Any] | None = None,
+) -> str:
+    """The report as Markdown: the gate's verdict (when judged), the table, fates,
+    categories, how it ran, the violations grouped by obstacle, and the saved cases."""
+    parts = [f"# Campaign {result.header['campaign']}", ""]
+    parts += [*_gate_markdown(verdict), ""] if verdict is not None else []
+    parts += [_status(result), ""]
     parts.append(_markdown_table(_header(result), _rows(result)))
+    fates = _fate_lines(result)
+    if fates:
+        parts += ["", "Violating pairs by what became of the obstacles they blame:", ""]
+        parts += [f"- {line}" for line in fates]
+    if chart:
+        parts += ["", f"![violations and counts per size]({CHART_NAME})"]
     if _scoped(result):
         parts += ["", _SCOPE_NOTE]
     categories = _category_rows(result)
     if categories:
         parts += ["", "## Per category", ""]
-        parts.append(
-            _markdown_table(
-                [size_label(result), "category", "pairs", "fewer", "same", "more"], categories
-            )
-        )
+        parts.append(_markdown_table(_category_header(result), categories))
     parts += ["", describe_execution(result.execution)]
-    if result.examples:
-        parts += ["", "## First violations", ""]
-        parts.extend(
-            f"- {_example_line(example, size_label(result))}" for example in result.examples
-        )
+    violations = _violation_lines(result, None)
+    if violations:
+        parts += ["", "## Violations by obstacle", "", violations[0], ""]
+        parts.extend(f"- {line.strip()}" for line in violations[1:])
+    if cases:
+        parts += ["", "## Cases", "", "Replay one with `pytest --mt-replay <folder>`:", ""]
+        label = size_label(result)
+        for case in cases:
+            where = f"`{case.folder}`" if case.folder else f"not saved: {case.note}"
+            parts.append(
+                f"- source {case.source}, {label}={case.size}, follow-up {case.followup}: {where}"
+            )
     return "\n".join(parts) + "\n"
 
 
-def _atomic_write(path: Path, write: Callable[[Path], object]) -> None:
-    """Write to a temporary file and rename: an interruption never leaves half a report."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_json(result: CampaignResult, path: Path) -> None:
-    _atomic_write(path, lambda p: p.write_text(json.dumps(result.to_json(), indent=2)))
-
-
-def write_markdown(result: CampaignResult, path: Path) -> None:
-    _atomic_write(path, lambda p: p.write_text(to_markdown(result), encoding="utf-8"))
-
-
-@dataclass(frozen=True)
-class ChartColumn:
-    """One column of the Fig. 3 chart: a category at one noise size."""
-
-    category: str
-    size: int
-    position: float
-    percentages: tuple[float, float, float]  # fewer, same, more; sum 100 (or all 0)
-
-
-def chart_columns(result: CampaignResult) -> list[ChartColumn]:
-    """The chart's columns: one group per category (sizes side by side), a gap between.
-
-    Without categories there is one group, "all", of the overall ``|O|`` vs ``|O'|`` counts.
-    """
-    sizes = sorted(result.sizes)
-    categories = sorted({c for counts in result.sizes.values() for c in counts.categories})
-    columns = []
-    for index, category in enumerate(categories or ["all"]):
-        for offset, size in enumerate(sizes):
-            counts = result.sizes[size]
-            values = (
-                counts.categories.get(category, [0, 0, 0])
-                if categories
-                else [counts.fewer, counts.equal, counts.more]
-            )
-            total = sum(values)
-            shares = tuple(100.0 * v / total if total else 0.0 for v in values)
-            position = float(index * (len(sizes) + 1) + offset)
-            columns.append(ChartColumn(category, size, position, shares))  # type: ignore[arg-type]
-    return columns
-
-
-def write_chart(result: CampaignResult, path: Path) -> None:
-    """100% stacked columns per category and n, like the paper's Fig. 3 (needs matplotlib)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    columns = chart_columns(result)
-    sizes = sorted(result.sizes)
-    names = list(dict.fromkeys(column.category for column in columns))
-    positions = [column.position for column in columns]
-    centres = [
-        sum(c.position for c in columns if c.category == name) / len(sizes) for name in names
-    ]
-    figure, axes = plt.subplots(figsize=(max(6.0, 0.45 * len(positions) + 2.5), 4.5))
-    bottoms = [0.0] * len(columns)
-    colours = {"fewer": "#d62728", "equal": "#bbbbbb", "more": "#1f77b4"}
-    labels = {"fewer": "fewer in O'", "equal": "same", "more": "more in O'"}
-    for slot, name in enumerate(_OUTCOMES):
-        heights = [column.percentages[slot] for column in columns]
-        axes.bar(positions, heights, bottom=bottoms, color=colours[name], label=labels[name])
-        bottoms = [b + h for b, h in zip(bottoms, heights, strict=True)]
-    axes.set_xticks(positions, [str(column.size) for column in columns], fontsize=7)
-    for centre, category in zip(centres, names, strict=True):
-        axes.annotate(
-            category,
-            (centre, 0),
-            xycoords=("data", "axes fraction"),
-            xytext=(0, -24),
-            textcoords="offset points",
-            ha="center",
-            va="top",
-            fontsize=9,
+def job_summary(entries: Sequence[tuple[CampaignResult, Any]], folder: Path) -> str:
+    """A short Markdown summary of campaigns and their gates, for a CI job's page."""
+    parts = ["## pytest-metamorphic campaigns", ""]
+    parts.append("| campaign | gate | sizes | violations (Wilson 95%) | reports |")
+    parts.append("|---|---|---|---|---|")
+    for result, verdict in entries:
+        name = str(result.header["campaign"])
+        state = "not judged" if verdict is None else ("passed" if verdict.passed else "**FAILED**")
+        sizes = "<br>".join(f"{size_label(result)}={size}" for size in sorted(result.sizes))
+        rates = "<br>".join(
+            f"{counts.violations}/{counts.pairs} ({counts.rate('violations')})"
+            for _, counts in sorted(result.sizes.items())
         )
-    label = size_label(result)
-    axes.set_xlabel(
-        "noise points n, per category" if label == "n" else f"{label}, per category",
-        labelpad=22,
-    )
-    axes.set_ylabel("% of source/follow-up pairs")
-    axes.set_ylim(0, 100)
-    title = f"{result.header['campaign']}: objects per category, O vs O'"
-    if not result.complete:
-        title += " (PARTIAL)"
-    axes.set_title(title)
-    axes.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
-    figure.tight_layout()
-    _atomic_write(path, lambda p: figure.savefig(p, dpi=110, format="png"))
-    plt.close(figure)
+        reports = os.fspath(folder / _slug_of(name))
+        parts.append(f"| {name} | {state} | {sizes} | {rates} | `{reports}/` |")
+    for result, verdict in entries:
+        if verdict is not None and not verdict.passed:
+            parts += ["", f"### {result.header['campaign']}: gate failed", ""]
+            parts += [*_gate_markdown(verdict)]
+    return "\n".join(parts) + "\n"
+
+
+def _slug_of(name: str) -> str:
+    from pytest_metamorphic.core.campaign.baseline import slug
+
+    return slug(name)
+
+
+def write_job_summary(
+    path: Path, entries: Sequence[tuple[CampaignResult, Any]], folder: Path
+) -> None:
+    """Append :func:`job_summary` to ``path`` (GitHub Actions' ``$GITHUB_STEP_SUMMARY``
+    is appended to by every step)."""
+    with Path(path).open("a", encoding="utf-8") as handle:
+        handle.write(job_summary(entries, folder))
+
+
+def write_json(
+    result: CampaignResult, path: Path, *, verdict: Any = None, cases: Sequence[Any] | None = None
+) -> None:
+    data = result.to_json()
+    if verdict is not None:
+        data["gate"] = verdict.to_json()
+    if cases:
+        data["cases"] = [case.to_json() for case in cases]
+    write_atomically(path, lambda p: p.write_text(json.dumps(data, indent=2)))
+
+
+def write_markdown(
+    result: CampaignResult, path: Path, *, verdict: Any = None, cases: Sequence[Any] | None = None
+) -> None:
+    chart = (Path(path).parent / CHART_NAME).exists()
+    text = to_markdown(result, verdict, chart=chart, cases=cases)
+    write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))

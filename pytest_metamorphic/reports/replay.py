@@ -11,17 +11,17 @@ in the test itself.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.core.relations import CheckContext, Verdict
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.reports.artifacts import Artifact
 
-__all__ = ["ReplayResult", "example_snippet", "replay"]
+__all__ = ["ReplayResult", "example_snippet", "replay", "replay_with"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,12 @@ class ReplayResult:
             lines.append(f"  when saved: {record.get('explanation', '')}")
         lines.append(f"  source output:    {describe_value(self.source_output)}")
         lines.append(f"  follow-up output: {describe_value(self.followup_output)}")
+        if "campaign" in record:  # a campaign's case: its test has no @example to add to
+            lines.append(
+                "  keep it as a regression test: copy the folder into the repository and run "
+                "pytest --mt-replay <copied folder> in CI (it fails while the case does)"
+            )
+            return lines
         lines.append("  keep it as a regression example:")
         lines.extend(f"    {line}" for line in example_snippet(self.artifact).splitlines())
         return lines
@@ -93,14 +99,23 @@ def replay(
             f"{artifact.folder}: the test has no relation named {artifact.relation!r} any more "
             f"(it has {names}); the artifact cannot be replayed"
         )
+    kwargs = dict(fixtures or {})
+    return replay_with(artifact, relation.relation, lambda value: spec.call(value, **kwargs))
+
+
+def replay_with(
+    artifact: Artifact, relation: Relation, system: Callable[[Any], Any]
+) -> ReplayResult:
+    """Run ``system`` on the artifact's saved source and follow-up and check ``relation``
+    (the output relation): what :func:`replay` does for a test, and a campaign's case
+    replays with its campaign's system and relation."""
     source = artifact.source()
     followup = artifact.followup()
-    kwargs = dict(fixtures or {})
-    source_output = spec.call(source, **kwargs)
-    followup_output = spec.call(followup.input, **kwargs)
+    source_output = system(source)
+    followup_output = system(followup.input)
     index = int(artifact.record.get("followup_index", 0))
     context = CheckContext(source, followup.input, followup.params, index)
-    verdict = relation.relation.check(source_output, followup_output, context)
+    verdict = relation.check(source_output, followup_output, context)
     return ReplayResult(artifact, not verdict.holds, verdict, source_output, followup_output)
 
 

@@ -1,5 +1,6 @@
 """The README's main job, examples/test_paper_campaign.py, run as a user runs it (fewer
-sources): both tables print, the reports are written, and -n 2 gives the same result."""
+sources): both tables and gates print, the reports and the mutant's cases are written, and
+-n 2 gives the same result."""
 
 from __future__ import annotations
 
@@ -21,22 +22,27 @@ def paper_campaign(pytester: pytest.Pytester) -> pytest.Pytester:
 
 def test_main_job_prints_both_tables_and_writes_reports(paper_campaign: pytest.Pytester) -> None:
     result = paper_campaign.runpytest_subprocess("--mt-campaign", "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=16)
+    result.assert_outcomes(passed=2)  # one test per campaign without xdist
     result.stdout.fnmatch_lines(
         [
             "*= campaign MR1 reference pipeline =*",
             "campaign 'MR1 reference pipeline', seed 0, 6 sources x 3 sizes x 1 follow-up(s) "
             "(complete); 24 SUT calls, 12 saved*",
             "*violations of subset*",
+            "gate PASSED: campaign 'MR1 reference pipeline' (no violations)",
             "*= campaign MR1 mutant count_scaled_radius =*",
+            "violation cases (* saved; replay one: pytest --mt-replay <folder>):",
+            "gate PASSED: campaign 'MR1 mutant count_scaled_radius' (expects violations*",
+            "*found the expected violations: *",
         ]
     )
     folder = paper_campaign.path / "mt-campaigns" / "MR1_reference_pipeline"
     report = json.loads((folder / "report.json").read_text())
     assert report["complete"] and report["sut_calls"] == 24
     assert all(size["violations"] == 0 for size in report["sizes"].values())
-    assert (folder / "categories.png").stat().st_size > 0
+    assert (folder / "campaign.png").stat().st_size > 0
     assert (folder / "report.md").read_text().startswith("#")
+    assert report["gate"]["passed"] is True
 
 
 def test_main_job_is_identical_under_xdist(paper_campaign: pytest.Pytester) -> None:
@@ -44,12 +50,12 @@ def test_main_job_is_identical_under_xdist(paper_campaign: pytest.Pytester) -> N
     single = paper_campaign.runpytest_subprocess(
         "--mt-campaign", "--mt-campaign-dir", "one", "-k", "count_scaled", "-p", "no:cacheprovider"
     )
-    single.assert_outcomes(passed=8, deselected=8)
+    single.assert_outcomes(passed=1, deselected=1)
     spread = paper_campaign.runpytest_subprocess(
         "--mt-campaign", "--mt-campaign-dir", "two", "-k", "count_scaled", "-n", "2",
         "-p", "no:cacheprovider",
     )  # fmt: skip
-    spread.assert_outcomes(passed=8)
+    spread.assert_outcomes(passed=2)  # a shard per worker
     name = "MR1_mutant_count_scaled_radius"
     reports = [
         json.loads((paper_campaign.path / d / name / "report.json").read_text())

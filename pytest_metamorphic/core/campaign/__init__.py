@@ -13,9 +13,13 @@ interrupted campaign loses at most the source in progress and resumes where it s
 The package's modules follow that story: :mod:`.spec` (what a campaign is),
 :mod:`.results` (tallies that merge exactly), :mod:`.log` (the JSONL log), :mod:`.source`
 (one source's record), :mod:`.run` (this process), :mod:`.cluster` (a Dask cluster),
-:mod:`.system` (systems built once per process), :mod:`.testing` (pytest tests).
+:mod:`.system` (systems built once per process), :mod:`.testing` (pytest tests),
+:mod:`.gate` (when a campaign fails a build) and :mod:`.baseline` (another run's report
+to compare with).
 """
 
+from pytest_metamorphic.core.campaign.baseline import find_baseline, read_report
+from pytest_metamorphic.core.campaign.gate import Gate, GateVerdict, judge_campaign
 from pytest_metamorphic.core.campaign.log import (
     LogFile,
     ShardLogs,
@@ -31,21 +35,27 @@ from pytest_metamorphic.core.campaign.results import (
 from pytest_metamorphic.core.campaign.run import CampaignProgress, run_campaign
 from pytest_metamorphic.core.campaign.spec import Campaign, CampaignInput, campaign_inputs
 from pytest_metamorphic.core.campaign.system import SystemFactory
-from pytest_metamorphic.core.campaign.testing import campaign_test
+from pytest_metamorphic.core.campaign.testing import CampaignTest, campaign_test
 
 __all__ = [
     "Campaign",
     "CampaignInput",
     "CampaignProgress",
     "CampaignResult",
+    "CampaignTest",
+    "Gate",
+    "GateVerdict",
     "LogFile",
     "ShardLogs",
     "SizeCounts",
     "SystemFactory",
     "campaign_inputs",
     "campaign_test",
+    "find_baseline",
+    "judge_campaign",
     "merge_results",
     "read_campaign_log",
+    "read_report",
     "result_from_json",
     "run_campaign",
     "shard_indices",

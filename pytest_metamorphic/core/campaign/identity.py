@@ -17,10 +17,13 @@ from typing import Any
 
 from pytest_metamorphic.core.comparison import value_digest
 
-__all__ = ["output_digest", "system_identity"]
+__all__ = ["input_digest", "output_digest", "system_identity"]
 
-# Outputs are digested like any value (equal values, equal digests across processes).
+# Outputs and inputs are digested like any value (equal values, equal digests across
+# processes): a digest of a source input tells two sources that load the same frame apart
+# from two that differ.
 output_digest = value_digest
+input_digest = value_digest
 
 _ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import time
 from collections.abc import Callable, Collection, Container, Iterable, Iterator
 from contextlib import contextmanager
@@ -33,6 +34,7 @@ __all__ = [
 ]
 
 SYNC_SECONDS = 1.0
+_LAYOUT = re.compile(r"shard-\d+-of-(\d+)\.jsonl")
 
 
 def read_log(
@@ -251,7 +253,10 @@ class ShardLogs:
     ``i % shards``.
 
     The pytest plugin's layout, whichever engine ran the sources (pytest-xdist shards or
-    a Dask cluster), so a run interrupted on one resumes on the other.
+    a Dask cluster), so a run interrupted on one resumes on the other. The number of
+    shards follows the number of workers, so a folder may hold logs of several layouts
+    (``-n 4`` yesterday, ``-n 2`` today): reading takes each source from whichever log
+    has it, and a fresh run sets all of them aside.
     """
 
     folder: Path
@@ -266,7 +271,19 @@ class ShardLogs:
         return self.folder / f"shard-{shard}-of-{self.shards}.jsonl"
 
     def paths(self) -> list[Path]:
-        return [self.path(shard) for shard in range(self.shards)]
+        """This layout's logs, then those of other layouts found in the folder."""
+        own = [self.path(shard) for shard in range(self.shards)]
+        return own + [path for path in self._other_layouts() if path not in own]
+
+    def _other_layouts(self) -> list[Path]:
+        if not self.folder.is_dir():
+            return []
+        found = []
+        for path in self.folder.glob("shard-*-of-*.jsonl"):
+            match = _LAYOUT.fullmatch(path.name)
+            if match and int(match.group(1)) != self.shards:
+                found.append(path)
+        return sorted(found)
 
     def read(
         self,
@@ -283,6 +300,8 @@ class ShardLogs:
             wanted = [index for index in mine if index in indices]
             if wanted:
                 _tally_file(result, self.path(shard), campaign.header(), set(wanted), system)
+        for path in self._other_layouts():  # a source already read is not read again
+            _tally_file(result, path, campaign.header(), indices, system)
         result._trim_examples()
         return result
 
@@ -300,12 +319,15 @@ class ShardLogs:
 
     def set_aside(self, indices: Iterable[int]) -> None:
         """Rename aside the logs of the shards holding ``indices`` (another shard's log
-        may belong to a run going on beside this one)."""
+        may belong to a run going on beside this one), and every log of another layout
+        (a fresh run must not be resumed from older records later)."""
         shards = {index % self.shards for index in indices}
-        for shard in sorted(shards):
-            path = self.path(shard)
-            if path.exists() and path.stat().st_size:
-                set_aside(path)
+        paths = [self.path(shard) for shard in sorted(shards)] + self._other_layouts()
+        for path in paths:
+            # Shards of one run set the other layouts aside side by side: the first wins.
+            with contextlib.suppress(FileNotFoundError):
+                if path.stat().st_size:
+                    set_aside(path)
 
     @contextmanager
     def open(self, header: dict[str, Any]) -> Iterator[Callable[[dict[str, Any]], None]]:

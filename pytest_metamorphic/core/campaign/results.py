@@ -9,7 +9,15 @@ from typing import Any
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.intervals import Rate, wilson
 
-__all__ = ["CampaignResult", "SizeCounts", "merge_results", "result_from_json", "tally"]
+__all__ = [
+    "FATE_ORDER",
+    "CampaignResult",
+    "SizeCounts",
+    "merge_results",
+    "pair_fate",
+    "result_from_json",
+    "tally",
+]
 
 _TALLIES = (
     "pairs",
@@ -38,14 +46,34 @@ class SizeCounts:
     not_applicable: int = 0
     # category -> [pairs where that category lost elements, kept count, gained]
     categories: dict[str, list[int]] = field(default_factory=dict)
+    # category -> violating pairs that blame an element of that category
+    category_violations: dict[str, int] = field(default_factory=dict)
+    # fate ("lost", "merged", "split", ...) -> violating pairs counted under it (pair_fate):
+    # the values add up to ``violations``
+    fates: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: SizeCounts) -> None:
         for name in _TALLIES:
             setattr(self, name, getattr(self, name) + getattr(other, name))
         for category, counts in other.categories.items():
-            mine = self.categories.setdefault(category, [0, 0, 0])
+            slots = self.categories.setdefault(category, [0, 0, 0])
             for i in range(3):
-                mine[i] += counts[i]
+                slots[i] += counts[i]
+        for tally, theirs in (
+            (self.category_violations, other.category_violations),
+            (self.fates, other.fates),
+        ):
+            for key, count in theirs.items():
+                tally[key] = tally.get(key, 0) + count
+
+    def category_pairs(self, category: str) -> int:
+        """Pairs whose source or follow-up holds an element of ``category``."""
+        return sum(self.categories.get(category, [0, 0, 0]))
+
+    def category_rate(self, category: str) -> Rate:
+        """Violating pairs that blame a ``category`` element, among the pairs holding one."""
+        pairs = self.category_pairs(category)
+        return wilson(min(self.category_violations.get(category, 0), pairs), pairs)
 
     def rate(self, name: str) -> Rate:
         return wilson(getattr(self, name), self.pairs)
@@ -61,12 +89,17 @@ class SizeCounts:
             "unjudged_changes": self.unjudged_changes,
             **({"not_applicable": self.not_applicable} if self.not_applicable else {}),
             "categories": {k: list(v) for k, v in sorted(self.categories.items())},
+            "category_violations": dict(sorted(self.category_violations.items())),
+            "fates": dict(sorted(self.fates.items())),
         }
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> SizeCounts:
-        counts = cls(**{k: v for k, v in data.items() if k != "categories"})
+        mappings = ("categories", "category_violations", "fates")
+        counts = cls(**{k: v for k, v in data.items() if k not in mappings})
         counts.categories = {k: list(v) for k, v in data.get("categories", {}).items()}
+        counts.category_violations = dict(data.get("category_violations", {}))
+        counts.fates = dict(data.get("fates", {}))
         return counts
 
 
@@ -80,7 +113,9 @@ class CampaignResult:
     sut_calls: int = 0
     source_crashes: int = 0
     examples: list[dict[str, Any]] = field(default_factory=list)
-    keep_examples: int = 20
+    keep_examples: int = 20  # per size
+    # digests of the source inputs: how many distinct inputs the sources were
+    inputs: set[str] = field(default_factory=set)
     # How the sources were run (engine, workers, seconds): one entry per run or shard.
     # Reported, never compared: the outcome is the same whichever engine ran it.
     execution: list[dict[str, Any]] = field(default_factory=list)
@@ -109,13 +144,28 @@ class CampaignResult:
         self.source_crashes += other.source_crashes
         self.examples.extend(other.examples)
         self.execution.extend(other.execution)
+        self.inputs |= other.inputs
         self._trim_examples()
 
     def _trim_examples(self) -> None:
-        # The first violations in (source, size, follow-up) order: the same set whichever
-        # way the sources were split over shards.
+        # The first violations of each size in (source, follow-up) order: the same set
+        # whichever way the sources were split over shards, and a rare size's first
+        # violation is kept however many the other sizes have.
         self.examples.sort(key=lambda e: (e["source"], e["size"], e["followup"]))
-        del self.examples[self.keep_examples :]
+        kept: dict[int, int] = {}
+        trimmed = []
+        for example in self.examples:
+            if kept.get(example["size"], 0) < self.keep_examples:
+                kept[example["size"]] = kept.get(example["size"], 0) + 1
+                trimmed.append(example)
+        self.examples[:] = trimmed
+
+    @property
+    def distinct_inputs(self) -> int:
+        """How many different source inputs the finished sources were (logs written
+        before 0.7 record none: then every source counts as its own)."""
+        recorded = len(self.inputs)
+        return recorded if recorded else len(self.sources_done)
 
     def outcome_json(self) -> dict[str, Any]:
         """:meth:`to_json` without how it ran: equal for any split, engine or resume."""
@@ -129,6 +179,8 @@ class CampaignResult:
             "complete": self.complete,
             "source_indices": sorted(self.sources_done),
             "sources_done": len(self.sources_done),
+            "distinct_inputs": self.distinct_inputs,
+            "input_digests": sorted(self.inputs),
             "sut_calls": self.sut_calls,
             "sut_calls_saved": self.sut_calls_saved,
             "source_crashes": self.source_crashes,
@@ -143,6 +195,7 @@ class CampaignResult:
                 for size, counts in sorted(self.sizes.items())
             },
             "examples": self.examples,
+            "keep_examples": self.keep_examples,
             "execution": self.execution,
         }
 
@@ -159,14 +212,17 @@ def result_from_json(data: dict[str, Any]) -> CampaignResult:
         sut_calls=data["sut_calls"],
         source_crashes=data["source_crashes"],
         examples=list(data["examples"]),
-        keep_examples=max(20, len(data["examples"])),
+        keep_examples=int(data.get("keep_examples", max(20, len(data["examples"])))),
         execution=list(data.get("execution", [])),
+        inputs=set(data.get("input_digests", [])),
     )
 
 
 def tally(result: CampaignResult, record: dict[str, Any]) -> None:
     result.sources_done.add(record["source"])
     result.sut_calls += record["sut_calls"]
+    if isinstance(record.get("input"), str):
+        result.inputs.add(record["input"])
     if "crash" in record:
         result.source_crashes += 1
         return
@@ -191,9 +247,32 @@ def tally(result: CampaignResult, record: dict[str, Any]) -> None:
         if not pair["holds"]:
             counts.violations += 1
             result.examples.append({"source": record["source"], **pair})
+            _tally_violated(counts, pair.get("violated", []))
         for category, (a, b) in pair.get("categories", {}).items():
             slot = counts.categories.setdefault(category, [0, 0, 0])
             slot[0 if a > b else 1 if a == b else 2] += 1
+
+
+# Fates from the worst: a violating pair is counted under the first fate one of its
+# blamed elements met (a word outside this list after these; none at all: "other").
+FATE_ORDER = ("lost", "merged", "split", "relabelled", "changed")
+
+
+def pair_fate(violated: list[dict[str, Any]]) -> str:
+    """The one fate a violating pair is counted under (see :data:`FATE_ORDER`)."""
+    fates = sorted({str(entry["fate"]) for entry in violated if "fate" in entry})
+    for fate in FATE_ORDER:
+        if fate in fates:
+            return fate
+    return fates[0] if fates else "other"
+
+
+def _tally_violated(counts: SizeCounts, violated: list[dict[str, Any]]) -> None:
+    """One violating pair: each blamed category once, and the pair under one fate."""
+    for category in {str(entry["category"]) for entry in violated if "category" in entry}:
+        counts.category_violations[category] = counts.category_violations.get(category, 0) + 1
+    fate = pair_fate(violated)
+    counts.fates[fate] = counts.fates.get(fate, 0) + 1
 
 
 def merge_results(results: Iterable[CampaignResult]) -> CampaignResult:

@@ -3,14 +3,14 @@ relation's verdicts, as one JSON-ready record (the unit every engine runs)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from pytest_metamorphic.core.batching import SystemCalls
-from pytest_metamorphic.core.campaign.identity import output_digest
+from pytest_metamorphic.core.campaign.identity import input_digest, output_digest
 from pytest_metamorphic.core.campaign.spec import Campaign, draw_followup
 from pytest_metamorphic.core.comparison import describe_value
-from pytest_metamorphic.core.relations import CheckContext, unjudged_changes
+from pytest_metamorphic.core.relations import CheckContext, Verdict, unjudged_changes
 
 __all__ = ["run_source"]
 
@@ -45,6 +45,8 @@ def run_source(campaign: Campaign, index: int, timeout: float | None = None) -> 
         record["sut_calls"] = 1
         record["crash"] = f"{type(source_crash).__name__}: {source_crash}"
         return record
+    # Which input this source is: sources that load the same frame twice count once.
+    record["input"] = input_digest(source_input)
     calls = SystemCalls(campaign.system, timeout)
     pairs = [
         (size_index, size, f)
@@ -141,3 +143,44 @@ def _judge(
     if not verdict.holds:
         pair["explanation"] = verdict.explanation
         pair["source_output"] = describe_value(source_output)
+        pair["violated"] = _violated(campaign, verdict, source_output, followup_output)
+
+
+_MAX_VIOLATED = 20  # elements described per pair; the rest are counted
+
+
+def _violated(
+    campaign: Campaign, verdict: Verdict, source_output: Any, followup_output: Any
+) -> list[dict[str, Any]]:
+    """The source elements a violation blames: what each is, its category and fate.
+
+    The relation's details name them (``blamed``, else ``unmatched``); a relation that
+    names none (a count, an exact comparison) gives an empty list.
+    """
+    details = verdict.details if isinstance(verdict.details, Mapping) else {}
+    named = details.get("blamed", details.get("unmatched"))
+    try:
+        elements = list(source_output)
+    except TypeError:
+        return []
+    if not isinstance(named, (list, tuple)):
+        return []
+    indices = [i for i in named if isinstance(i, int) and 0 <= i < len(elements)]
+    indices = indices[:_MAX_VIOLATED]
+    fates: Sequence[str] = ()
+    if campaign.fate is not None and indices:
+        try:
+            fates = [str(f) for f in campaign.fate(source_output, followup_output, indices)]
+        except Exception:
+            # A fate explains a verdict the relation already gave; one that cannot be
+            # told (outputs it does not understand) leaves the pair counted as "other".
+            fates = ()
+    violated = []
+    for number, i in enumerate(indices):
+        entry: dict[str, Any] = {"index": i, "what": describe_value(elements[i])}
+        if campaign.category is not None:
+            entry["category"] = str(campaign.category(elements[i]))
+        if number < len(fates):
+            entry["fate"] = fates[number]
+        violated.append(entry)
+    return violated

@@ -52,6 +52,11 @@ class Campaign:
         What the log calls the system under test (default: its qualified name). With its
         fingerprint it keeps a resumed run from blending two systems' results
         (:mod:`pytest_metamorphic.core.campaign.identity`).
+    fate : callable(source_output, followup_output, indices) -> sequence of str, optional
+        What became of each violated source element (``indices``: those the relation's
+        verdict blames), one word each, e.g. ``"lost"``, ``"merged"``, ``"split"``
+        (:func:`pytest_metamorphic.lidar.judging.fates.obstacle_fates` for obstacles).
+        The reports and the chart break violations down by it.
     """
 
     name: str
@@ -67,6 +72,7 @@ class Campaign:
     counted: Callable[[Any, Any], Any] | None = None
     size_label: str = "n"
     system_name: str | None = None
+    fate: Callable[[Any, Any, Sequence[int]], Sequence[str]] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -74,7 +80,7 @@ class Campaign:
         for argument in ("source", "followup", "system"):
             if not callable(getattr(self, argument)):
                 raise InvalidArgument(f"{argument}={getattr(self, argument)!r} must be callable")
-        for argument in ("category", "counted"):
+        for argument in ("category", "counted", "fate"):
             value = getattr(self, argument)
             if value is not None and not callable(value):
                 raise InvalidArgument(f"{argument}={value!r} must be callable or None")

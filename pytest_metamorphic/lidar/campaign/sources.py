@@ -13,6 +13,7 @@ from pytest_metamorphic.core.campaign import Campaign
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import Relation
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.judging.fates import obstacle_fates
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E
@@ -159,10 +160,12 @@ def scoped_campaign(
     seed: int,
     scope: ScopeLike,
     size_label: str = "n",
+    fates: bool = True,
 ) -> Campaign:
-    """A LiDAR campaign whose tables count what ``scope`` judges, broken down by label;
-    ``relation`` is built from the resolved scope (arguments checked before any frame is
-    read)."""
+    """A LiDAR campaign whose tables count what ``scope`` judges, broken down by label
+    and, where follow-up obstacles lie in the source's frame (``fates``), by what became
+    of each violated obstacle; ``relation`` is built from the resolved scope (arguments
+    checked before any frame is read)."""
     chosen = as_scope(scope)
     _check_system(system)
     check = relation(chosen)
@@ -180,4 +183,5 @@ def scoped_campaign(
         category=box_label,
         counted=None if chosen.everything else _Judged(chosen),
         size_label=size_label,
+        fate=obstacle_fates if fates else None,
     )

@@ -136,4 +136,5 @@ def symmetry_campaign(
         seed=seed,
         scope=scope,
         size_label=_SEVERITY_LABELS[symmetry],
+        fates=False,  # follow-up obstacles lie in a turned, mirrored or shifted frame
     )

@@ -202,10 +202,13 @@ def test_reports_table_markdown_json_and_chart(tmp_path: Path) -> None:
     assert lines[0].startswith("campaign 'toy MR1', seed 7, 20 sources x 2 sizes x 2 follow-up(s)")
     assert "|O| > |O'|" in lines[1] and "violations of subset[equality]" in lines[1]
     assert any(line.split()[:2] == ["100", "40"] for line in lines)
-    first = lines.index(f"first violations (3 of the {len(result.examples)} kept):")
-    example = result.examples[0]
-    assert lines[first + 1].startswith(
-        f"  source {example['source']}, n={example['size']}, follow-up {example['followup']}: "
+    first = next(i for i, line in enumerate(lines) if line.startswith("violations by obstacle"))
+    assert lines[first].startswith("violations by obstacle (3 of ")
+    assert f"{len(result.examples)} kept" in lines[first]
+    # grouped: each line names a source, the lost element and how many pairs lost it
+    assert all(
+        line.startswith("  source ") and ", element #" in line and " pair(s) (n=" in line
+        for line in lines[first + 1 :]
     )
     assert len(lines) == first + 4
     write_markdown(result, tmp_path / "r.md")

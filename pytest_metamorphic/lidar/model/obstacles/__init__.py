@@ -13,6 +13,7 @@ from pytest_metamorphic.lidar.model.obstacles.box import (
     Label,
     SizePrior,
     as_boxes,
+    bev_intersection,
     bev_iou,
     center_distances,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "Label",
     "SizePrior",
     "as_boxes",
+    "bev_intersection",
     "bev_iou",
     "box_support",
     "center_distances",

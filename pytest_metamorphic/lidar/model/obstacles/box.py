@@ -21,6 +21,7 @@ __all__ = [
     "Label",
     "SizePrior",
     "as_boxes",
+    "bev_intersection",
     "bev_iou",
     "center_distances",
 ]
@@ -254,22 +255,28 @@ def bev_iou(source: Sequence[Box], followup: Sequence[Box]) -> NDArray[np.float6
     """
     source = as_boxes(source, "source")
     followup = as_boxes(followup, "followup")
-    iou = np.zeros((len(source), len(followup)))
+    inter = bev_intersection(source, followup)
+    a_area = np.array([box.footprint_area() for box in source]).reshape(-1, 1)
+    b_area = np.array([box.footprint_area() for box in followup]).reshape(1, -1)
+    union = a_area + b_area - inter
+    return np.clip(np.divide(inter, union, out=np.zeros_like(inter), where=union > 0), 0.0, 1.0)
+
+
+def bev_intersection(source: Sequence[Box], followup: Sequence[Box]) -> NDArray[np.float64]:
+    """(n, m) float64: bird's-eye areas (m^2) shared by every pair of boxes' footprints."""
+    source = as_boxes(source, "source")
+    followup = as_boxes(followup, "followup")
+    inter = np.zeros((len(source), len(followup)))
     if not source or not followup:
-        return iou
-    a_corners, b_corners = _corners(source), _corners(followup)
-    a_area = np.array([box.footprint_area() for box in source])
-    b_area = np.array([box.footprint_area() for box in followup])
+        return inter
     a_radius = np.array([math.hypot(*box.size[:2]) / 2 for box in source])
     b_radius = np.array([math.hypot(*box.size[:2]) / 2 for box in followup])
     distance = center_distances(source, followup)
     rows, cols = np.nonzero(distance < a_radius[:, None] + b_radius[None, :])
     if len(rows) == 0:
-        return iou
-    inter = _convex_intersection_area(a_corners[rows], b_corners[cols])
-    union = a_area[rows] + b_area[cols] - inter
-    iou[rows, cols] = np.clip(inter / union, 0.0, 1.0)
-    return iou
+        return inter
+    inter[rows, cols] = _convex_intersection_area(_corners(source)[rows], _corners(followup)[cols])
+    return inter
 
 
 def _inside_convex(points: NDArray[np.float64], polygon: NDArray[np.float64]) -> NDArray[np.bool_]:
