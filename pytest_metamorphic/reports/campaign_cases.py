@@ -29,6 +29,7 @@ from pytest_metamorphic.core.campaign import Campaign, CampaignResult
 from pytest_metamorphic.core.campaign.baseline import slug
 from pytest_metamorphic.core.campaign.spec import draw_followup
 from pytest_metamorphic.core.cases import Followup
+from pytest_metamorphic.core.errors import DataError
 from pytest_metamorphic.core.reduction import reduce_followup
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.core.violations import ViolationRecord
@@ -224,7 +225,35 @@ def keep_first(
 
 def replay_case(artifact: Artifact, campaign: Campaign) -> Any:
     """Re-run ``campaign``'s system on a saved campaign case and check its relation
-    (a :class:`~pytest_metamorphic.reports.replay.ReplayResult`)."""
-    from pytest_metamorphic.reports.replay import replay_with
+    (a :class:`~pytest_metamorphic.reports.replay.ReplayResult`).
 
-    return replay_with(artifact, campaign.relation, campaign.system)
+    Inputs saved as files or JSON are read back; inputs of a kind no file holds (a
+    tuple, an object of the user's) are drawn again from the campaign's seeds, which
+    needs the campaign unchanged since the case was saved (its header is compared).
+    """
+    from pytest_metamorphic.reports.replay import replay_inputs, replay_with
+
+    record = artifact.record
+    if campaign.relation.name != artifact.relation:
+        raise DataError(
+            f"the case was saved for relation {artifact.relation!r}; the campaign now judges "
+            f"{campaign.relation.name!r}",
+            path=artifact.folder,
+        )
+    kinds = {record["source"].get("kind"), record["followup"].get("kind")}
+    if "unsupported" not in kinds:
+        return replay_with(artifact, campaign.relation, campaign.system)
+    saved = record.get("campaign") if isinstance(record.get("campaign"), Mapping) else {}
+    if saved.get("header") != campaign.header():
+        raise DataError(
+            "the case's inputs were not saved as files, and the campaign is not the one "
+            f"that saved it (then {saved.get('header')}, now {campaign.header()}): they "
+            "cannot be drawn again",
+            path=artifact.folder,
+        )
+    index, size, f = int(saved["source"]), int(saved["size"]), int(saved["followup"])
+    source = campaign.source(campaign.source_rng(index), index)
+    value, params = draw_followup(campaign, source, index, campaign.sizes.index(size), f)
+    return replay_inputs(
+        artifact, campaign.relation, campaign.system, source, Followup(value, dict(params))
+    )

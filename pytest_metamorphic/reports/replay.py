@@ -21,7 +21,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.reports.artifacts import Artifact
 
-__all__ = ["ReplayResult", "example_snippet", "replay", "replay_with"]
+__all__ = ["ReplayResult", "example_snippet", "replay", "replay_inputs", "replay_with"]
 
 
 @dataclass(frozen=True)
@@ -109,8 +109,17 @@ def replay_with(
     """Run ``system`` on the artifact's saved source and follow-up and check ``relation``
     (the output relation): what :func:`replay` does for a test, and a campaign's case
     replays with its campaign's system and relation."""
-    source = artifact.source()
-    followup = artifact.followup()
+    return replay_inputs(artifact, relation, system, artifact.source(), artifact.followup())
+
+
+def replay_inputs(
+    artifact: Artifact,
+    relation: Relation,
+    system: Callable[[Any], Any],
+    source: Any,
+    followup: Any,
+) -> ReplayResult:
+    """:func:`replay_with` on inputs rebuilt elsewhere (a campaign draws them again)."""
     source_output = system(source)
     followup_output = system(followup.input)
     index = int(artifact.record.get("followup_index", 0))

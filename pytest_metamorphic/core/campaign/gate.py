@@ -108,7 +108,7 @@ class Gate:
         if self.expect_violations:
             return "expects violations: a fault the relation must detect"
         if self.max_rate is None:
-            return "no threshold"
+            return "no threshold on the violation rate"
         if isinstance(self.max_rate, Mapping):
             rates = ", ".join(f"{size}: {rate:.1%}" for size, rate in self.max_rate.items())
             return f"violation rate at most {{{rates}}} (others 0)"

@@ -1,0 +1,210 @@
+"""Campaign tests gate a build: the plugin judges each campaign's merged result (default:
+no violation; a threshold; expected violations; a baseline) and fails the campaign's
+test, the same with and without pytest-xdist; a job summary for CI; shards sized to the
+workers and sources; campaign violations saved as cases that replay."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+CAMPAIGN = """
+import os
+import numpy as np
+from pytest_metamorphic import relations
+from pytest_metamorphic.core.campaign import Campaign, campaign_test
+
+def source(rng, index):
+    return tuple(int(x) for x in rng.integers(0, 1000, size=5))
+
+def followup(xs, size, rng):
+    return xs + tuple(int(x) for x in rng.integers(1000, 2000, size=size))
+
+def system(xs):
+    # MT_FAULT: the share of follow-ups on which the first element is lost
+    share = float(os.environ.get("MT_FAULT", "0"))
+    lossy = len(xs) > 5 and (sum(xs) * 2654435761 % 10007) < share * 10007
+    return sorted(xs)[1:] if lossy else sorted(xs)
+
+test_dedupe = campaign_test(
+    Campaign("dedupe", source, followup, system, relations.subset(), sizes=(1, 10),
+             sources=SOURCES, seed=SEED, system_name="dedupe"),
+    GATE
+)
+"""
+
+
+def _write(pytester: pytest.Pytester, gate: str = "", sources: int = 60, seed: int = 0) -> None:
+    text = CAMPAIGN.replace("SOURCES", str(sources)).replace("SEED", str(seed))
+    pytester.makepyfile(test_c=text.replace("GATE", gate.lstrip(", ")))
+
+
+def _run(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, *args: str, fault: float = 0.0
+) -> pytest.RunResult:
+    monkeypatch.setenv("MT_FAULT", str(fault))
+    monkeypatch.delenv("GITHUB_STEP_SUMMARY", raising=False)
+    return pytester.runpytest_subprocess("--mt-campaign", "-p", "no:cacheprovider", *args)
+
+
+@pytest.mark.parametrize("workers", [[], ["-n", "2"]], ids=["one process", "xdist"])
+def test_a_violating_campaign_fails_its_test(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester, workers: list
+) -> None:
+    if workers:
+        pytest.importorskip("xdist")
+    _write(pytester)
+    passing = _run(pytester, monkeypatch, *workers)
+    passing.assert_outcomes(passed=len(workers) or 1)  # a shard per worker
+    passing.stdout.fnmatch_lines(["gate PASSED: campaign 'dedupe' (no violations)"])
+    failing = _run(pytester, monkeypatch, *workers, fault=0.2)
+    assert failing.ret == pytest.ExitCode.TESTS_FAILED
+    failing.assert_outcomes(failed=1, passed=(len(workers) or 1) - 1)
+    failing.stdout.fnmatch_lines(
+        [
+            "*campaign 'dedupe' failed its gate (no violations)",
+            "* violating pair(s) where none is allowed*",
+            "n=1: * of 60 pairs violate*",
+            "gate FAILED: campaign 'dedupe' (no violations)",
+            "FAILED test_c.py::test_dedupe* - campaign 'dedupe' failed its gate*",
+        ]
+    )
+    report = json.loads((pytester.path / "mt-campaigns" / "dedupe" / "report.json").read_text())
+    assert report["gate"]["passed"] is False
+    assert "Gate FAILED" in (pytester.path / "mt-campaigns" / "dedupe" / "report.md").read_text()
+
+
+def test_a_mutant_campaign_expects_violations(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    _write(pytester, gate=", expect_violations=True")
+    found = _run(pytester, monkeypatch, fault=0.2)
+    found.assert_outcomes(passed=1)
+    found.stdout.fnmatch_lines(["*found the expected violations: * of 120 pairs*"])
+    missed = _run(pytester, monkeypatch, fault=0.0)
+    missed.assert_outcomes(failed=1)
+    missed.stdout.fnmatch_lines(["*the relation did not detect this system's fault*"])
+
+
+def test_a_threshold_fails_only_on_evidence(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    _write(pytester, gate=", max_rate=0.1", sources=200)
+    # about 12% violate: above 10% to the eye, not by the 99% lower bound
+    _run(pytester, monkeypatch, fault=0.12).assert_outcomes(passed=1)
+    clearly = _run(pytester, monkeypatch, fault=0.4)
+    clearly.assert_outcomes(failed=1)
+    clearly.stdout.fnmatch_lines(["*lower bound *% is above the maximum 10.0%*"])
+
+
+def test_a_regression_against_the_baseline_fails_and_main_passes(
+    monkeypatch: pytest.MonkeyPatch,
+    pytester: pytest.Pytester,
+) -> None:
+    """CI's recipe: main's campaign folder is kept, a pull request runs against it."""
+    _write(pytester, gate=", max_rate=None", sources=150)
+    _run(pytester, monkeypatch, fault=0.1).assert_outcomes(passed=1)  # main
+    shutil.copytree(pytester.path / "mt-campaigns", pytester.path / "baseline")
+    _write(pytester, gate=", max_rate=None", sources=150, seed=1)  # another draw
+    same = _run(pytester, monkeypatch, "--mt-baseline", "baseline", fault=0.1)
+    same.assert_outcomes(passed=1)
+    same.stdout.fnmatch_lines(["*not significantly worse than the baseline baseline/dedupe/*"])
+    worse = _run(pytester, monkeypatch, "--mt-baseline", "baseline", fault=0.4)
+    worse.assert_outcomes(failed=1)
+    worse.stdout.fnmatch_lines(
+        [
+            "*significantly worse than the baseline baseline/dedupe/report.json*",
+            "n=1: */150 (*%) vs baseline */150 (*%): difference +*%, 99.50% interval [[]+*] -> worse",
+        ]
+    )
+
+
+def test_a_baseline_that_is_missing_or_broken_is_said(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    _write(pytester)
+    missing = _run(pytester, monkeypatch, "--mt-baseline", "nowhere")
+    missing.assert_outcomes(passed=1)
+    missing.stdout.fnmatch_lines(["*not compared: no baseline at nowhere*"])
+    broken = pytester.path / "broken" / "dedupe" / "report.json"
+    broken.parent.mkdir(parents=True)
+    broken.write_text('{"header": {"campaign": "dedupe"}}')
+    result = _run(pytester, monkeypatch, "--mt-baseline", "broken")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*baseline unreadable: *broken/dedupe/report.json*'relation'*"])
+
+
+def test_the_job_summary_is_markdown_for_ci(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    _write(pytester)
+    summary = pytester.path / "summary.md"
+    summary.write_text("earlier step\n")
+    monkeypatch.setenv("MT_FAULT", "0.2")
+    monkeypatch.setenv("GITHUB_STEP_SUMMARY", str(summary))
+    result = pytester.runpytest_subprocess("--mt-campaign", "-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    text = summary.read_text()
+    assert text.startswith("earlier step\n## pytest-metamorphic campaigns")  # appended
+    assert "| dedupe | **FAILED** | n=1<br>n=10 |" in text
+    assert "### dedupe: gate failed" in text
+
+
+def test_shards_follow_the_workers_and_the_sources(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    pytest.importorskip("xdist")
+    _write(pytester, sources=2, gate=", shards=8")
+    result = _run(pytester, monkeypatch, "--collect-only", "-q")
+    result.stdout.fnmatch_lines(
+        ["test_c.py::test_dedupe[shard0]", "test_c.py::test_dedupe[shard1]"]
+    )
+    assert "shard2" not in result.stdout.str()  # two sources, two shards: none empty
+    _write(pytester, sources=10)
+    one = _run(pytester, monkeypatch)
+    one.assert_outcomes(passed=1)
+    one.stdout.fnmatch_lines(["ran in one process (1 shard(s), 10 sources, *"])
+    three = _run(pytester, monkeypatch, "-n", "3")
+    three.assert_outcomes(passed=3)
+    # a log folder written with three shards resumes without xdist (another layout)
+    resumed = _run(pytester, monkeypatch, "--mt-resume")
+    resumed.stdout.fnmatch_lines(["*10 sources read back from the logs*"])
+
+
+def test_a_campaign_case_replays_until_the_fault_is_fixed(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    _write(pytester, gate=", expect_violations=True")
+    _run(pytester, monkeypatch, "--mt-campaign-cases", "1", fault=0.3).assert_outcomes(passed=1)
+    root = pytester.path / "mt-artifacts" / "test_c_py__test_dedupe" / "dedupe"
+    cases = sorted(path.name for path in root.iterdir())
+    assert [name.split("-")[0] for name in cases] == ["n1", "n10"]  # the first of each size
+    record = json.loads((root / cases[0] / "record.json").read_text())
+    assert record["campaign"]["name"] == "dedupe" and record["nodeid"] == "test_c.py::test_dedupe"
+    monkeypatch.setenv("MT_FAULT", "0.3")
+    still = pytester.runpytest_subprocess(
+        "--mt-replay", str(root / cases[0]), "-p", "no:cacheprovider"
+    )
+    still.assert_outcomes(failed=1)
+    still.stdout.fnmatch_lines(["*relation 'subset[[]equality[]]' still FAILS*"])
+    monkeypatch.setenv("MT_FAULT", "0")
+    fixed = pytester.runpytest_subprocess(
+        "--mt-replay", str(root / cases[0]), "-p", "no:cacheprovider"
+    )
+    fixed.assert_outcomes(passed=1)
+    fixed.stdout.fnmatch_lines(["*passes now (fixed)*"])
+
+
+def test_cases_are_the_same_under_xdist(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    pytest.importorskip("xdist")
+    _write(pytester, gate=", max_rate=None")
+    root = pytester.path / "mt-artifacts" / "test_c_py__test_dedupe" / "dedupe"
+    _run(pytester, monkeypatch, fault=0.3)
+    single = sorted(path.name for path in root.iterdir())
+    _run(pytester, monkeypatch, "-n", "2", fault=0.3)
+    assert sorted(path.name for path in root.iterdir()) == single
+    assert len(single) == 4  # the first two of each of the two sizes
