@@ -116,7 +116,8 @@ def test_a_regression_against_the_baseline_fails_and_main_passes(
     worse.stdout.fnmatch_lines(
         [
             "*significantly worse than the baseline baseline/dedupe/report.json*",
-            "n=1: */150 (*%) vs baseline */150 (*%): difference +*%, 99.50% interval [[]+*] -> worse",
+            "n=1: */150 (*%) vs baseline */150 (*%): difference +*%, "
+            "99.50% interval [[]+*] -> worse",
         ]
     )
 

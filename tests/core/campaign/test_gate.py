@@ -209,9 +209,10 @@ def test_an_unchanged_rate_passes_its_own_baseline_in_20_of_20_reruns() -> None:
     gate = Gate(max_rate=None)
     baseline = run_campaign(_toy(0.2, seed=0))
     assert 0.15 < baseline.sizes[10].violations / 200 < 0.25
-    same = [judge_campaign(run_campaign(_toy(0.2, seed)), gate, baseline=baseline) for seed in range(1, 21)]  # fmt: skip
+    seeds = range(1, 21)
+    same = [judge_campaign(run_campaign(_toy(0.2, s)), gate, baseline=baseline) for s in seeds]
     assert [verdict.passed for verdict in same] == [True] * 20
-    worse = [judge_campaign(run_campaign(_toy(0.45, seed)), gate, baseline=baseline) for seed in range(1, 21)]  # fmt: skip
+    worse = [judge_campaign(run_campaign(_toy(0.45, s)), gate, baseline=baseline) for s in seeds]
     assert sum(not verdict.passed for verdict in worse) >= 19
 
 
