@@ -30,12 +30,15 @@ from pytest_metamorphic.core.campaign.baseline import slug
 from pytest_metamorphic.core.campaign.spec import draw_followup
 from pytest_metamorphic.core.cases import Followup
 from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.core.files import field
 from pytest_metamorphic.core.reduction import reduce_followup
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.core.violations import ViolationRecord
 from pytest_metamorphic.reports.artifacts import Artifact, write_artifact
 
 __all__ = ["SavedCase", "case_folder", "keep_first", "replay_case", "save_cases"]
+
+KEYS = ("source", "size", "followup")  # what names a campaign's case
 
 
 @dataclass(frozen=True)
@@ -119,7 +122,11 @@ def save_cases(
     """
     saved = []
     for example in first_cases(result, k):
-        saved.append(_save_one(campaign, example, root, nodeid, budget, timeout))
+        try:
+            saved.append(_save_one(campaign, example, root, nodeid, budget, timeout))
+        except Exception as error:  # a case that cannot be saved must not cost the result
+            case = SavedCase(example["source"], example["size"], example["followup"], "")
+            saved.append(_note(case, f"not saved: {type(error).__name__}: {error}"))
     return saved
 
 
@@ -243,7 +250,8 @@ def replay_case(artifact: Artifact, campaign: Campaign) -> Any:
     kinds = {record["source"].get("kind"), record["followup"].get("kind")}
     if "unsupported" not in kinds:
         return replay_with(artifact, campaign.relation, campaign.system)
-    saved = record.get("campaign") if isinstance(record.get("campaign"), Mapping) else {}
+    found = record.get("campaign")
+    saved: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
     if saved.get("header") != campaign.header():
         raise DataError(
             "the case's inputs were not saved as files, and the campaign is not the one "
@@ -251,7 +259,10 @@ def replay_case(artifact: Artifact, campaign: Campaign) -> Any:
             "cannot be drawn again",
             path=artifact.folder,
         )
-    index, size, f = int(saved["source"]), int(saved["size"]), int(saved["followup"])
+    where, path = "the record's campaign", artifact.folder / "record.json"
+    index, size, f = (field(saved, key, int, where=where, path=path) for key in KEYS)
+    if size not in campaign.sizes or not 0 <= f < campaign.followups:
+        raise DataError(f"{where} names size {size}, follow-up {f}: not the campaign's", path=path)
     source = campaign.source(campaign.source_rng(index), index)
     value, params = draw_followup(campaign, source, index, campaign.sizes.index(size), f)
     return replay_inputs(

@@ -209,3 +209,21 @@ def test_cases_are_the_same_under_xdist(
     _run(pytester, monkeypatch, "-n", "2", fault=0.3)
     assert sorted(path.name for path in root.iterdir()) == single
     assert len(single) == 4  # the first two of each of the two sizes
+
+
+def test_the_gate_is_the_same_on_a_dask_cluster(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    pytest.importorskip("distributed")
+    _write(pytester, gate=", max_rate=0.05", sources=60)
+    alone = _run(pytester, monkeypatch, fault=0.3)
+    alone.assert_outcomes(failed=1)
+    cluster = _run(pytester, monkeypatch, "--mt-dask", "local:2", fault=0.3)
+    cluster.assert_outcomes(failed=1)
+    lines = [
+        line
+        for result in (alone, cluster)
+        for line in result.stdout.lines
+        if line.startswith("gate FAILED") or line.lstrip().startswith(("ok ", "FAIL", "n="))
+    ]
+    assert lines[: len(lines) // 2] == lines[len(lines) // 2 :]
