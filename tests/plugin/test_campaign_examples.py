@@ -21,7 +21,9 @@ def paper_campaign(pytester: pytest.Pytester) -> pytest.Pytester:
 
 
 def test_main_job_prints_both_tables_and_writes_reports(paper_campaign: pytest.Pytester) -> None:
-    result = paper_campaign.runpytest_subprocess("--mt-campaign", "-p", "no:cacheprovider")
+    result = paper_campaign.runpytest_subprocess(
+        "--mt-campaign", "--mt-minimize-budget", "40", "-p", "no:cacheprovider"
+    )
     result.assert_outcomes(passed=2)  # one test per campaign without xdist
     result.stdout.fnmatch_lines(
         [
@@ -48,12 +50,13 @@ def test_main_job_prints_both_tables_and_writes_reports(paper_campaign: pytest.P
 def test_main_job_is_identical_under_xdist(paper_campaign: pytest.Pytester) -> None:
     pytest.importorskip("xdist")
     single = paper_campaign.runpytest_subprocess(
-        "--mt-campaign", "--mt-campaign-dir", "one", "-k", "count_scaled", "-p", "no:cacheprovider"
-    )
+        "--mt-campaign", "--mt-campaign-dir", "one", "-k", "count_scaled",
+        "--mt-minimize-budget", "40", "-p", "no:cacheprovider",
+    )  # fmt: skip
     single.assert_outcomes(passed=1, deselected=1)
     spread = paper_campaign.runpytest_subprocess(
         "--mt-campaign", "--mt-campaign-dir", "two", "-k", "count_scaled", "-n", "2",
-        "-p", "no:cacheprovider",
+        "--mt-minimize-budget", "40", "-p", "no:cacheprovider",
     )  # fmt: skip
     spread.assert_outcomes(passed=2)  # a shard per worker
     name = "MR1_mutant_count_scaled_radius"
@@ -65,3 +68,31 @@ def test_main_job_is_identical_under_xdist(paper_campaign: pytest.Pytester) -> N
     for report in reports:
         del report["execution"]
     assert reports[0] == reports[1]
+
+
+def test_a_case_of_the_faulty_pipeline_replays_from_its_folder(
+    paper_campaign: pytest.Pytester,
+) -> None:
+    """A campaign violation on rendered HDL-64E streets is a folder like a test's artifact
+    (clouds, record, bird's-eye picture) and replays against the campaign's pipeline."""
+    pytest.importorskip("matplotlib")
+    run = paper_campaign.runpytest_subprocess(
+        "--mt-campaign", "-k", "count_scaled", "--mt-campaign-cases", "1",
+        "--mt-minimize-budget", "40", "-p", "no:cacheprovider",
+    )  # fmt: skip
+    run.assert_outcomes(passed=1, deselected=1)
+    root = paper_campaign.path / "mt-artifacts"
+    folders = sorted(path.parent for path in root.rglob("record.json"))
+    assert folders, run.stdout.str()
+    case = folders[0]
+    assert {"source.pcd", "followup.pcd", "birdseye.png", "record.json"} <= {
+        path.name for path in case.iterdir()
+    }
+    record = json.loads((case / "record.json").read_text())
+    assert record["campaign"]["name"] == "MR1 mutant count_scaled_radius"
+    assert record["minimization"]["sut_calls"] <= 40
+    replayed = paper_campaign.runpytest_subprocess(
+        "--mt-replay", str(case), "-p", "no:cacheprovider"
+    )
+    replayed.assert_outcomes(failed=1)
+    replayed.stdout.fnmatch_lines(["*still FAILS*"])
