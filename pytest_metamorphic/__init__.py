@@ -31,6 +31,7 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     ),
     "SystemUnderTestCrash": ("pytest_metamorphic.core.errors", "SystemUnderTestCrash"),
     "NothingTestedWarning": ("pytest_metamorphic.core.errors", "NothingTestedWarning"),
+    "ProtocolWarning": ("pytest_metamorphic.core.errors", "ProtocolWarning"),
 }
 
 __all__ = [  # noqa: RUF022 - grouped: API, relations, errors
@@ -47,6 +48,7 @@ __all__ = [  # noqa: RUF022 - grouped: API, relations, errors
     "MetamorphicViolation",
     "NondeterministicSystemError",
     "NothingTestedWarning",
+    "ProtocolWarning",
     "SystemUnderTestCrash",
     "__version__",
 ]
@@ -66,6 +68,7 @@ if TYPE_CHECKING:  # pragma: no cover
         MetamorphicViolation,
         NondeterministicSystemError,
         NothingTestedWarning,
+        ProtocolWarning,
         SystemUnderTestCrash,
     )
     from pytest_metamorphic.core.relations import Relation, Verdict

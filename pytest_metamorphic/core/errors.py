@@ -21,6 +21,7 @@ __all__ = [
     "NondeterministicSystemError",
     "NothingTestedWarning",
     "OtherSystemError",
+    "ProtocolWarning",
     "SystemTimeout",
     "SystemUnderTestCrash",
 ]
@@ -130,6 +131,11 @@ class OtherSystemError(MetamorphicError):
     Resuming would blend the two systems' rates; start afresh, or pass
     ``resume="any-system"`` (``--mt-resume-any-system``) when the change is intended.
     """
+
+
+class ProtocolWarning(UserWarning):
+    """A program under test speaks its protocol in a way that cannot be checked (e.g. a
+    long-lived detector whose answers do not name the frames they answer)."""
 
 
 class NothingTestedWarning(UserWarning):

@@ -7,6 +7,14 @@ memory:
 
 * every program runs in a **process group of its own**; on a time-out, at exit and when
   it is stopped, the whole group is killed (its helpers too);
+* it **dies with the process that started it**, however that process ends (SIGTERM from a
+  cancelled CI job or ``timeout``, SIGKILL, a crash, a Dask worker's death): the program
+  is started by a small watchdog (a Python process without site imports) that holds the
+  read end of a pipe whose write end only this process holds; when this process is gone
+  the pipe reads end-of-file and the watchdog kills the whole group. The watchdog passes
+  stdin, stdout and stderr straight to the program and exits with its status. (A child
+  this process *forks* while the program runs inherits the write end and keeps the
+  watchdog waiting until it exits too. POSIX only; on Windows programs run directly.);
 * its **stderr goes to a file**, never a pipe, and only the last ``tail`` bytes are ever
   read back (the file is cut back to its tail while a long-lived program runs);
 * :func:`run_command` waits for the program itself, not for pipes its helpers inherited;
@@ -18,10 +26,13 @@ memory:
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import selectors
+import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
@@ -54,6 +65,7 @@ def kill_group(process: subprocess.Popen[bytes]) -> None:
             process.kill()
     with contextlib.suppress(Exception):
         process.wait(timeout=10)
+    _release(process)
 
 
 def _stderr_file() -> IO[bytes]:
@@ -79,6 +91,61 @@ def _tail(handle: IO[bytes], size: int = STDERR_TAIL) -> str:
     return "\n".join(f"    {line}" for line in text.splitlines())
 
 
+# The watchdog: runs the program as its child (same process group), and kills the group
+# when the pipe from the test process reads end-of-file (that process is gone), or exits
+# with the program's status when the program ends. Only os, sys, select and signal: it
+# starts in a few milliseconds with -S -E.
+_WATCHDOG = """
+import os, select, signal, sys
+watch = int(sys.argv[1])
+args = sys.argv[2:]
+wake_read, wake_write = os.pipe()
+os.set_blocking(wake_write, False)
+signal.set_wakeup_fd(wake_write)
+signal.signal(signal.SIGCHLD, lambda *_: None)
+signal.signal(signal.SIGTERM, lambda *_: os.killpg(0, signal.SIGKILL))
+child = os.fork()
+if child == 0:
+    for fd in (watch, wake_read, wake_write):
+        os.close(fd)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+    try:
+        os.execvp(args[0], args)
+    except OSError as error:
+        os.write(2, ("%s: %s\\n" % (args[0], error)).encode())
+    os._exit(127)
+while True:
+    done, status = os.waitpid(child, os.WNOHANG)
+    if done:
+        break
+    try:
+        ready = select.select([watch, wake_read], [], [])[0]
+    except InterruptedError:
+        continue
+    if wake_read in ready:
+        os.read(wake_read, 512)
+    if watch in ready and not os.read(watch, 1):
+        os.killpg(0, signal.SIGKILL)
+if os.WIFSIGNALED(status):
+    number = os.WTERMSIG(status)
+    if number not in (signal.SIGKILL, signal.SIGSTOP):
+        signal.signal(number, signal.SIG_DFL)
+    os.kill(os.getpid(), number)
+os._exit(os.waitstatus_to_exitcode(status))
+"""
+
+
+def _found(program: str, env: Mapping[str, str] | None, cwd: str | None) -> bool:
+    """Whether ``program`` can be started (the watchdog would only find out after it
+    forked, as exit status 127)."""
+    if os.sep in program:
+        path = program if os.path.isabs(program) else os.path.join(cwd or ".", program)
+        return os.access(path, os.X_OK) and os.path.isfile(path)
+    search = (env if env is not None else os.environ).get("PATH", os.defpath)
+    return shutil.which(program, path=search) is not None
+
+
 def _popen(
     args: Sequence[str],
     *,
@@ -88,16 +155,50 @@ def _popen(
     env: Mapping[str, str] | None,
     cwd: str | None,
 ) -> subprocess.Popen[bytes]:
-    return subprocess.Popen(
-        list(args),
-        stdin=stdin,
-        stdout=stdout,
-        stderr=stderr,
-        env=None if env is None else dict(env),
-        cwd=cwd,
-        start_new_session=True,  # its own process group: killed as a whole
-        close_fds=True,
-    )
+    if not args:
+        raise OSError(errno.EINVAL, "empty command")
+    if not _found(args[0], env, cwd):
+        raise OSError(errno.ENOENT, f"No such file or directory: {args[0]!r}")
+    command, keep = list(args), ()
+    watch = None
+    if hasattr(os, "fork") and hasattr(os, "killpg"):
+        read_end, watch = os.pipe()  # the write end stays here, non-inheritable
+        command = [sys.executable, "-S", "-E", "-c", _WATCHDOG, str(read_end), *args]
+        keep = (read_end,)
+    try:
+        process = subprocess.Popen(
+            command,
+            stdin=stdin,
+            stdout=stdout,
+            stderr=stderr,
+            env=None if env is None else dict(env),
+            cwd=cwd,
+            start_new_session=True,  # its own process group: killed as a whole
+            close_fds=True,
+            pass_fds=keep,
+        )
+    except BaseException:
+        if watch is not None:
+            os.close(watch)
+        raise
+    finally:
+        for fd in keep:
+            os.close(fd)
+    if watch is not None:
+        _WATCHES[process.pid] = watch
+    return process
+
+
+# pid of a watchdog -> the write end of its pipe, closed when its group is killed (or when
+# this process ends, which is the point).
+_WATCHES: dict[int, int] = {}
+
+
+def _release(process: subprocess.Popen[bytes]) -> None:
+    fd = _WATCHES.pop(process.pid, None)
+    if fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
 
 def run_command(

@@ -18,8 +18,9 @@ Two ways to run the command:
   a non-zero exit status is an error naming the command, its status and its stderr.
 * **one long-lived process** (``persistent=True``), so a model is loaded once: the
   command is started once; for each frame it is sent one line ``INPUT<TAB>OUTPUT`` on
-  stdin, writes its predictions to OUTPUT, then prints one line on stdout (anything,
-  e.g. ``done``; logs go to stderr). If it dies it is restarted for the next frame.
+  stdin, writes its predictions to OUTPUT, then prints one line on stdout that names the
+  INPUT it answers (e.g. ``done<TAB>INPUT``, or the request line echoed; logs go to
+  stderr). If it dies it is restarted for the next frame.
   With ``batch_size=k`` it may also be sent up to k frames in one line,
   ``INPUT1<TAB>OUTPUT1<TAB>INPUT2<TAB>OUTPUT2...``, and answers one line when every
   OUTPUT is written: campaigns and ``@metamorphic(batch=True)`` tests then hand it a
@@ -52,7 +53,15 @@ The contract, for a detector written in any language:
 * **output, KITTI**: a label file (camera frame, bottom centre, h w l, ``rotation_y``,
   a score column), converted with ``calibration``;
 * **stdout** (long-lived mode): exactly one line per request, written after the
-  prediction files; everything else (logs, banners) goes to stderr.
+  prediction files, naming every INPUT of the request; everything else (logs, banners)
+  goes to stderr;
+* **identity**: an answer that names a frame of an earlier request is an error (answers
+  out of order), as is one naming only some of a batch's frames; an answer naming none
+  (a plain ``done``) is accepted with a :class:`~pytest_metamorphic.core.errors.ProtocolWarning`,
+  once per detector, since then a stale or reordered answer cannot be told. A JSON
+  predictions file may also say which frame it is of, ``"input": "<INPUT path or its
+  file name>"``; when it does, another frame's name is an error (a batch whose files were
+  mixed up).
 """
 
 from __future__ import annotations
@@ -63,6 +72,7 @@ import shlex
 import shutil
 import tempfile
 import threading
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -71,6 +81,7 @@ from pytest_metamorphic.core.errors import (
     DataError,
     ExternalSystemError,
     InvalidArgument,
+    ProtocolWarning,
 )
 from pytest_metamorphic.core.files import read_json
 from pytest_metamorphic.core.processes import LineChannel, run_command
@@ -109,6 +120,7 @@ def read_json_predictions(
     *,
     class_names: Sequence[str] | None = None,
     label_map: Mapping[str, Label] | None = None,
+    expect_input: str | os.PathLike[str] | None = None,
 ) -> list[Box]:
     """Boxes from a JSON predictions file.
 
@@ -128,10 +140,15 @@ def read_json_predictions(
         Class name -> label, on top of
         :data:`~pytest_metamorphic.lidar.systems.detectors.CLASS_LABELS` ("Car" is
         ``car``); a name neither knows becomes ``unknown``.
+    expect_input : path-like, optional
+        The frame these predictions must be of: a file whose ``"input"`` names another
+        frame (a batch answered out of order, a stale file) is refused.
     """
     path = Path(path)
     mapping = label_mapping(label_map)
     data = read_json(path, what="JSON predictions file")
+    if expect_input is not None and isinstance(data, Mapping) and "input" in data:
+        _check_identity(data["input"], Path(expect_input), path)
     try:
         if isinstance(data, Mapping) and ("pred_boxes" in data or "bboxes_3d" in data):
             if class_names is None:
@@ -144,6 +161,18 @@ def read_json_predictions(
         return [_box(item, index, mapping) for index, item in enumerate(items)]
     except InvalidArgument as error:
         raise DataError(str(error), path=path) from None
+
+
+def _check_identity(named: Any, expected: Path, path: Path) -> None:
+    """The predictions' ``"input"`` must name the frame they were asked for (its path, or
+    its file name)."""
+    if not isinstance(named, str) or named not in (str(expected), expected.name):
+        raise DataError(
+            f'predictions of "input": {str(named)[:200]!r}, but this file answers '
+            f"{expected.name}: the detector mixed up its frames (a batch answered out of "
+            "order, or a stale file)",
+            path=path,
+        )
 
 
 def _box(item: Any, index: int, mapping: Mapping[str, Label]) -> Box:
@@ -267,6 +296,8 @@ class ProcessDetector:
         self._channel: LineChannel | None = None
         self._lock = threading.Lock()
         self._calib: KittiCalibration | None = None
+        self._answered: list[str] = []  # the frames of the last request answered
+        self._warned_anonymous = False
 
     def __repr__(self) -> str:
         mode = "persistent" if self.persistent else "per frame"
@@ -314,7 +345,7 @@ class ProcessDetector:
                 self._request([(source, target)])
             else:
                 self._run_once(source, target)
-            return self._read(target)
+            return self._read(target, source)
 
     def run_batch(self, frames: Sequence[Any]) -> list[list[Box]]:
         """Run the command on several frames in one request (needs ``batch_size``).
@@ -337,7 +368,7 @@ class ProcessDetector:
                 self._write(cloud, source)
             self.calls += len(clouds)
             self._request(files)
-            return [self._read(target) for _, target in files]
+            return [self._read(target, source) for source, target in files]
 
     def _files(self, folder: Path, count: int) -> list[tuple[Path, Path]]:
         suffix = "json" if self.output_format == "json" else "txt"
@@ -357,7 +388,7 @@ class ProcessDetector:
         else:
             write_pcd(cloud, path)
 
-    def _read(self, path: Path) -> list[Box]:
+    def _read(self, path: Path, source: Path | None = None) -> list[Box]:
         if not path.is_file():
             raise ExternalSystemError(
                 f"{self._name()} wrote no predictions to {path.name} (expected a "
@@ -366,7 +397,10 @@ class ProcessDetector:
         try:
             if self.output_format == "json":
                 return read_json_predictions(
-                    path, class_names=self.class_names, label_map=self.label_map
+                    path,
+                    class_names=self.class_names,
+                    label_map=self.label_map,
+                    expect_input=source,
                 )
             return read_kitti_labels(path, self._calibration())
         except DataError as error:
@@ -408,7 +442,12 @@ class ProcessDetector:
     # -- one process per frame -------------------------------------------------------------
 
     def _run_once(self, source: Path, target: Path) -> None:
-        args = [part.format(input=source, output=target) for part in self.command]
+        # Only the two placeholders are replaced: other braces in an argument (a Python
+        # snippet's "{}", a JSON literal) are the user's text, not a format string.
+        args = [
+            part.replace("{input}", str(source)).replace("{output}", str(target))
+            for part in self.command
+        ]
         self.starts += 1
         run_command(args, name=self._name(), timeout=self.timeout, env=self.env, cwd=self.cwd)
 
@@ -428,6 +467,7 @@ class ProcessDetector:
         line = "\t".join(f"{source}\t{target}" for source, target in files)
         try:
             answer = channel.request(line, timeout=limit)
+            self._check_answer(answer, [source for source, _ in files])
             missing = [target.name for _, target in files if not target.exists()]
             if missing:
                 raise ExternalSystemError(
@@ -439,6 +479,36 @@ class ProcessDetector:
             # Timed out, died or broke the protocol: killed; started afresh next time.
             self.close()
             raise
+
+    def _check_answer(self, answer: str, inputs: Sequence[Path]) -> None:
+        """An answer line names the frames it answers (the contract); one that names
+        another request's frame is out of order, one that names none cannot be checked
+        (warned once)."""
+        named = [str(source) for source in inputs if str(source) in answer]
+        earlier = [path for path in self._answered if path in answer]
+        self._answered = [str(source) for source in inputs]
+        if earlier and not named:
+            raise ExternalSystemError(
+                f"{self._name()} answered {answer[:200]!r} to a request for "
+                f"{inputs[0].name}: that names a frame of an earlier request (answers out of "
+                "order)"
+            )
+        if named and len(named) != len(inputs):
+            missing = [source.name for source in inputs if str(source) not in named]
+            raise ExternalSystemError(
+                f"{self._name()} answered {answer[:200]!r}, which names {len(named)} of the "
+                f"request's {len(inputs)} frames (not {', '.join(missing[:3])})"
+            )
+        if not named and not self._warned_anonymous:
+            self._warned_anonymous = True
+            warnings.warn(
+                f"{self._name()} answered {answer[:80]!r}, which names no frame of the "
+                "request: answers out of order or stale cannot be detected. Answer with the "
+                "request's INPUT path(s), e.g. echo the request line (see "
+                "pytest_metamorphic.lidar.systems.process)",
+                ProtocolWarning,
+                stacklevel=4,
+            )
 
 
 def _as_command(command: Any) -> list[str]:

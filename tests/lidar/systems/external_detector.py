@@ -60,7 +60,8 @@ def main() -> None:
         parts = line.rstrip("\n").split("\t")
         for source, target in zip(parts[::2], parts[1::2], strict=True):
             detect(source, target, options, detector)
-        print(f"done {len(parts) // 2}", flush=True)
+        # The answer names the frames it answers (the protocol's contract).
+        print("done\t" + "\t".join(parts[::2]), flush=True)
 
 
 if __name__ == "__main__":

@@ -73,7 +73,7 @@ def serve(mode: str) -> None:
         if mode == "noisy":
             sys.stderr.write("y" * (2 << 20) + "\n")
             sys.stderr.flush()
-        print("done", flush=True)
+        print("done\t" + "\t".join(parts[::2]), flush=True)
         if mode == "two-lines":
             print("and another thing", flush=True)
 

@@ -3,7 +3,9 @@ memory, and are named for what they did (issue: inputs from outside)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -156,3 +158,70 @@ def test_a_process_that_dies_while_its_helper_holds_stdout_is_named(tmp_path: Pa
     with pytest.raises(ExternalSystemError, match="died"):
         channel.request(f"STALL\t{tmp_path / 'out.json'}", timeout=30)
     assert time.monotonic() - started < 10
+
+
+# -- no orphan: a detector dies with the process that started it ------------------------------
+
+PARENT = """
+import sys, time
+import numpy as np
+from pytest_metamorphic.lidar.systems.process import ProcessDetector
+script, pid_file, group_file = sys.argv[1:4]
+detector = ProcessDetector([sys.executable, script, "forking-server", pid_file],
+                           persistent=True, timeout=30)
+detector(np.zeros((8, 4), np.float32))
+with open(group_file, "w") as handle:
+    handle.write(str(detector._channel.process.pid))
+time.sleep(600)  # a test runner busy elsewhere, until it is killed
+"""
+
+
+def _group(pgid: int) -> list[int]:
+    """Live (not zombie) processes of process group ``pgid``."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        if int(fields[2]) == pgid and fields[0] not in ("Z", "X"):
+            members.append(int(entry.name))
+    return members
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc to find the processes")
+@pytest.mark.parametrize("signal_number", [15, 9], ids=["SIGTERM", "SIGKILL"])
+def test_a_persistent_detector_dies_with_its_parent(tmp_path: Path, signal_number: int) -> None:
+    # Before: the detector (its own session) outlived a parent killed by SIGTERM, which
+    # is what a cancelled CI job and `timeout` send, and by SIGKILL.
+    pid_file, group_file = tmp_path / "helper.pid", tmp_path / "group.pid"
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT, SCRIPT, str(pid_file), str(group_file)],
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[3])},
+    )
+    try:
+        assert eventually(group_file.exists, 60), "the parent never started its detector"
+        assert eventually(lambda: group_file.read_text().strip() != "", 5)
+        group = int(group_file.read_text())
+        helper = int(pid_file.read_text())
+        assert len(_group(group)) >= 3  # the watchdog, the detector, its helper
+        os.kill(parent.pid, signal_number)
+        parent.wait(10)
+        assert eventually(lambda: not _group(group), 10), _group(group)
+        assert gone(helper)
+    finally:
+        parent.kill()
+        text = group_file.read_text().strip() if group_file.exists() else ""
+        if text:  # a failed run must not leave the group behind either
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(int(text), 9)
+
+
+@pytest.mark.parametrize("literal", ["d = {}", "d = {'boxes': 1}", "x = '{0} {input!r}'"])
+def test_braces_in_a_command_are_the_users_text(literal: str) -> None:
+    # Before: IndexError / KeyError from str.format on the first frame.
+    code = f"import json, sys; {literal}; json.dump({{'boxes': []}}, open(sys.argv[2], 'w'))"
+    detector = ProcessDetector([sys.executable, "-c", code, "{input}", "{output}"])
+    assert detector(CLOUD) == []

@@ -136,3 +136,83 @@ def test_a_file_that_is_not_the_model_is_named(tmp_path: Path) -> None:
     os.mkfifo(fifo)  # never opened: a FIFO is no model file, and nothing blocks on it
     with pytest.raises(InvalidArgument, match=r"pipe\.onnx' is not a regular file"):
         OnnxNetwork(fifo)
+
+
+# -- model files from outside: the grid metadata is bounded and checked -----------------------
+
+
+def _varint(data: bytes, at: int) -> tuple[int, int]:
+    value = shift = 0
+    while True:
+        byte = data[at]
+        value |= (byte & 0x7F) << shift
+        at += 1
+        if not byte & 0x80:
+            return value, at
+        shift += 7
+
+
+def _encode_varint(value: int) -> bytes:
+    out = bytearray()
+    while True:
+        out.append((value & 0x7F) | (0x80 if value > 0x7F else 0))
+        value >>= 7
+        if not out[-1] & 0x80:
+            return bytes(out)
+
+
+def _with_grid(tmp_path: Path, text: str) -> Path:
+    """The shipped model with its ``grid`` metadata entry replaced by ``text`` (ModelProto
+    field 14, metadata_props, rewritten at the protobuf level: no onnx package needed)."""
+    data = DEFAULT_MODEL.read_bytes()
+    kept, at = bytearray(), 0
+    while at < len(data):
+        start = at
+        tag, at = _varint(data, at)
+        field, wire = tag >> 3, tag & 7
+        if wire == 0:
+            _, at = _varint(data, at)
+        elif wire == 2:
+            length, at = _varint(data, at)
+            body, at = data[at : at + length], at + length
+            if field == 14 and b"\n\x04grid" in body[:6]:
+                continue  # the old grid entry
+        else:
+            at += 8 if wire == 1 else 4
+        kept += data[start:at]
+    key, value = b"grid", text.encode()
+    entry = b"\n" + _encode_varint(len(key)) + key + b"\x12" + _encode_varint(len(value)) + value
+    kept += b"\x72" + _encode_varint(len(entry)) + entry  # field 14, length-delimited
+    path = tmp_path / "edited.onnx"
+    path.write_bytes(bytes(kept))
+    return path
+
+
+def test_the_rewritten_model_is_still_the_model(tmp_path: Path) -> None:
+    path = _with_grid(tmp_path, json.dumps(GridSpec().to_json()))
+    assert OnnxNetwork(path).grid == GridSpec()
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        # a grid of 800,000 cells a side asked numpy for 4.66 TiB
+        ('{"size": 800000, "range": 40.0}', r"size=800000 must be an int in \[8, 2048\]"),
+        ("[" * 100_000 + "]" * 100_000, "is 200000 characters; at most 4096"),  # was RecursionError
+        ("[" * 2000 + "]" * 2000, "is nested too deeply to parse"),
+        ('{"size": 160, "range": 1e400}', r"range=inf must be a number in \(0, 500\] m"),
+        ('{"size": "160"}', "size='160' must be an int"),
+        ('{"size": 160, "cells": 7}', r"unknown field\(s\) \['cells'\]"),
+        ("not json", "is not JSON"),
+        ("[160]", "must be a JSON object, got list"),
+        # the network is built for 160 x 160: onnxruntime's INVALID_ARGUMENT mid-run before
+        ('{"size": 64, "range": 40.0}', r"takes features of shape \['batch', 6, 160, 160\]"),
+    ],
+)
+def test_bad_grid_metadata_is_refused_naming_the_file_and_field(
+    tmp_path: Path, text: str, words: str
+) -> None:
+    path = _with_grid(tmp_path, text)
+    with pytest.raises(InvalidArgument, match=words) as error:
+        CNNSegmentation(network=str(path))(frame(0))
+    assert "edited.onnx" in str(error.value)

@@ -60,6 +60,10 @@ _Z_QUANTUM = 1e-4
 _I_QUANTUM = 1e-6
 
 
+MAX_GRID_SIZE = 2048  # cells a side: 4.2 million cells, 100 MB of features a frame
+MAX_GRID_RANGE = 500.0  # metres: beyond any automotive LiDAR's reach
+
+
 @dataclass(frozen=True)
 class GridSpec:
     """The bird's-eye grid: ``size`` x ``size`` cells over ``(-range, range]`` metres in x and y.
@@ -80,17 +84,32 @@ class GridSpec:
     max_height: float = 5.0
 
     def __post_init__(self) -> None:
-        if isinstance(self.size, bool) or not isinstance(self.size, int) or self.size < 8:
-            raise InvalidArgument(f"GridSpec size={self.size!r} must be an int >= 8")
+        if (
+            isinstance(self.size, bool)
+            or not isinstance(self.size, int)
+            or not 8 <= self.size <= MAX_GRID_SIZE
+        ):
+            raise InvalidArgument(
+                f"GridSpec size={self.size!r} must be an int in [8, {MAX_GRID_SIZE}] (Apollo's "
+                "largest grid is 864 cells a side)"
+            )
         if self.size % 8:
             raise InvalidArgument(
                 f"GridSpec size={self.size} must be a multiple of 8 (the network halves it "
                 "three times)"
             )
-        if not (math.isfinite(self.range) and self.range > 0):
-            raise InvalidArgument(f"GridSpec range={self.range!r} must be a positive number")
-        if not (math.isfinite(self.min_height) and math.isfinite(self.max_height)):
-            raise InvalidArgument("GridSpec min_height and max_height must be finite")
+        for name in ("range", "min_height", "max_height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise InvalidArgument(f"GridSpec {name}={value!r} must be a number")
+        if not (math.isfinite(self.range) and 0 < self.range <= MAX_GRID_RANGE):
+            raise InvalidArgument(
+                f"GridSpec range={self.range!r} must be a number in (0, {MAX_GRID_RANGE:g}] m"
+            )
+        if not all(abs(h) <= MAX_GRID_RANGE for h in (self.min_height, self.max_height)):
+            raise InvalidArgument(
+                f"GridSpec min_height and max_height must be finite, within +-{MAX_GRID_RANGE:g} m"
+            )
         if self.min_height >= self.max_height:
             raise InvalidArgument(
                 f"GridSpec min_height={self.min_height} must be < max_height={self.max_height}"

@@ -96,14 +96,9 @@ class OnnxNetwork:
         """The feature grid the model was trained on (from the file's metadata)."""
         if self._grid is None:
             meta = self.session.get_modelmeta().custom_metadata_map
-            if "grid" not in meta:
-                raise InvalidArgument(f"model file {str(self.path)!r} has no 'grid' metadata")
-            try:
-                self._grid = GridSpec(**json.loads(meta["grid"]))
-            except (TypeError, ValueError) as error:
-                raise InvalidArgument(
-                    f"model file {str(self.path)!r}: bad 'grid' metadata ({error})"
-                ) from None
+            grid = _grid_from_metadata(meta, str(self.path))
+            _check_input_shape(self.session, grid, str(self.path))
+            self._grid = grid
         return self._grid
 
     def metadata(self) -> dict[str, str]:
@@ -136,6 +131,56 @@ class OnnxNetwork:
             NetworkOutput(objectness[i, 0], offset[i], class_prob[i], height[i, 0])
             for i in range(len(features))
         ]
+
+
+_MAX_GRID_METADATA = 4096  # characters of the "grid" entry: a few numbers need ~100
+
+
+def _grid_from_metadata(meta: Any, path: str) -> GridSpec:
+    """The ``grid`` metadata entry as a GridSpec, every failure naming the file and field."""
+    where = f"model file {path!r}: metadata 'grid'"
+    if "grid" not in meta:
+        raise InvalidArgument(f"model file {path!r} has no 'grid' metadata")
+    text = meta["grid"]
+    if not isinstance(text, str) or len(text) > _MAX_GRID_METADATA:
+        size = len(text) if isinstance(text, str) else type(text).__name__
+        raise InvalidArgument(f"{where} is {size} characters; at most {_MAX_GRID_METADATA}")
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        raise InvalidArgument(f"{where} is nested too deeply to parse") from None
+    except ValueError as error:
+        raise InvalidArgument(f"{where} is not JSON ({error})") from None
+    if not isinstance(data, dict):
+        raise InvalidArgument(f"{where} must be a JSON object, got {type(data).__name__}")
+    unknown = sorted(set(data) - {"size", "range", "min_height", "max_height"})
+    if unknown:
+        raise InvalidArgument(f"{where} has unknown field(s) {unknown}")
+    try:
+        return GridSpec(**data)
+    except InvalidArgument as error:
+        raise InvalidArgument(f"{where}: {error}") from None
+
+
+def _check_input_shape(session: Any, grid: GridSpec, path: str) -> None:
+    """The network's declared input must be the grid's: a model and a grid that do not
+    belong together are refused before any frame runs (not by onnxruntime mid-run)."""
+    inputs = {item.name: item.shape for item in session.get_inputs()}
+    if "features" not in inputs:
+        raise InvalidArgument(
+            f"model file {path!r} has no input named 'features' (it has {sorted(inputs)})"
+        )
+    shape = list(inputs["features"])
+    expected = [len(CHANNELS), grid.size, grid.size]
+    declared = shape[1:]
+    if len(shape) != 4 or any(
+        isinstance(d, int) and d != e for d, e in zip(declared, expected, strict=True)
+    ):
+        raise InvalidArgument(
+            f"model file {path!r}: its network takes features of shape {shape}, but its "
+            f"'grid' metadata says {grid.size} x {grid.size} cells of {len(CHANNELS)} "
+            "channels; the model and its grid do not belong together"
+        )
 
 
 def _open(path: Path, threads: int | None) -> Any:
