@@ -159,7 +159,8 @@ def _popen(
         raise OSError(errno.EINVAL, "empty command")
     if not _found(args[0], env, cwd):
         raise OSError(errno.ENOENT, f"No such file or directory: {args[0]!r}")
-    command, keep = list(args), ()
+    command: list[str] = list(args)
+    keep: tuple[int, ...] = ()
     watch = None
     if hasattr(os, "fork") and hasattr(os, "killpg"):
         read_end, watch = os.pipe()  # the write end stays here, non-inheritable
