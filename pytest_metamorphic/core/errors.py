@@ -12,6 +12,7 @@ if TYPE_CHECKING:  # relations imports this module
     from pytest_metamorphic.core.relations import Verdict
 
 __all__ = [
+    "CampaignLogError",
     "DataError",
     "ExternalSystemError",
     "FolderInUse",
@@ -123,6 +124,11 @@ class FolderInUse(MetamorphicError):
     def __init__(self, message: str, *, path: object = None) -> None:
         self.path = None if path is None else str(path)
         super().__init__(f"{self.path}: {message}" if self.path else message)
+
+
+class CampaignLogError(MetamorphicError, OSError):
+    """A campaign log could not be written (a full disk, a folder gone): the records
+    written before are intact and a resumed run continues from them."""
 
 
 class OtherSystemError(MetamorphicError):

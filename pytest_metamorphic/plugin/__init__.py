@@ -50,6 +50,7 @@ _REPLAYS: pytest.StashKey[list[Artifact]] = pytest.StashKey()  # config: --mt-re
 _ITEM_REPLAYS: pytest.StashKey[list[ReplayResult]] = pytest.StashKey()  # item: its replays
 _REPLAY_RESULTS: pytest.StashKey[list[dict[str, Any]]] = pytest.StashKey()  # config: all, as JSON
 _ARTIFACT_LIST: pytest.StashKey[list[tuple[str, str]]] = pytest.StashKey()  # (nodeid, folder)
+_REPORT_ERROR: pytest.StashKey[str] = pytest.StashKey()  # why the reports were not written
 ARTIFACT_PROPERTY = "metamorphic_artifact"
 REPLAY_PROPERTY = "metamorphic_replay"
 
@@ -297,6 +298,13 @@ class _SessionReporter:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if hasattr(self.config, "workerinput"):
             return
+        error = self.config.stash.get(_REPORT_ERROR, None)
+        if error is not None:
+            terminalreporter.write_sep("=", "metamorphic reports NOT written", red=True)
+            terminalreporter.write_line(
+                f"{error}. The campaign logs hold every finished source: free the space "
+                "and run again with --mt-campaign --mt-resume to write the reports."
+            )
         summary = self.config.stash[_SUMMARY]
         if summary.tests:
             terminalreporter.write_sep("=", "metamorphic relations")
@@ -355,9 +363,19 @@ class _SessionReporter:
             "reported a result (a shard failed, was deselected, or the run was interrupted)"
         ]
 
-    def pytest_sessionfinish(self) -> None:
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> None:
         if hasattr(self.config, "workerinput"):
             return
+        try:
+            self._write_reports()
+        except OSError as error:
+            # A full disk at the report step: say so in the summary and fail the session
+            # (the campaign logs are complete; a --mt-resume run rewrites the reports).
+            self.config.stash[_REPORT_ERROR] = f"{type(error).__name__}: {error}"
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+    def _write_reports(self) -> None:
         options = self.config.stash[OPTIONS]
         if options.report is not None:
             self.config.stash[_SUMMARY].write_json(options.report)

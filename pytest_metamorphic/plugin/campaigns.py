@@ -100,7 +100,9 @@ def _shard(item: pytest.Item) -> int:
 
 
 def run_campaign_shard(item: pytest.Item) -> None:
+    __tracebackhide__ = True
     from pytest_metamorphic.core.campaign import ShardLogs, run_campaign
+    from pytest_metamorphic.core.errors import CampaignLogError, DataError
 
     spec = campaign_of(item)
     campaign, shards = spec.campaign, spec.shard_count(_workers(item.config))
@@ -121,8 +123,16 @@ def run_campaign_shard(item: pytest.Item) -> None:
             keep_examples=max(20, _cases_wanted(item, spec)),
             progress=bar.update if bar else None,
             timeout=options.timeout,
+            unverified="rerun" if options.rerun_unverified else "error",
             **run,
         )
+    except (CampaignLogError, DataError) as error:
+        # A log that cannot be written (a full disk) or read back (a record that does not
+        # verify): the message says what to do; the plugin's frames would only hide it.
+        if not hasattr(item.config, "workerinput"):
+            with contextlib.suppress(Exception):
+                merge_campaign(item.config, _read_back(campaign, logs, run))
+        pytest.fail(f"campaign {campaign.name!r}: {error}", pytrace=False)
     except BaseException:
         # Interrupted (Ctrl-C, a crash in the plugin): pytest makes no report for this
         # test, so the sources this shard finished would be missing from the partial

@@ -33,6 +33,7 @@ class Options:
     campaign: bool = False
     campaign_dir: Path = Path("mt-campaigns")
     resume: bool | Literal["any-system"] = False
+    rerun_unverified: bool = False
     artifacts: Path | None = DEFAULT_ARTIFACTS
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
     replay: tuple[Path, ...] = ()
@@ -109,6 +110,14 @@ def add_options(parser: pytest.Parser) -> None:
         action="store_true",
         default=False,
         help="continue interrupted campaigns from their logs instead of starting afresh",
+    )
+    group.addoption(
+        "--mt-resume-rerun-unverified",
+        action="store_true",
+        default=False,
+        help="on --mt-resume, run again the sources whose logged records do not verify "
+        "(edited, of another campaign or system, of other input data), listing them in the "
+        "report; by default such a record is an error naming its file and line",
     )
     group.addoption(
         "--mt-resume-any-system",
@@ -235,6 +244,9 @@ def parse_options(config: pytest.Config) -> Options:
         if not resume:
             raise pytest.UsageError("--mt-resume-any-system only makes sense with --mt-resume")
         resume = "any-system"
+    rerun_unverified = bool(config.getoption("mt_resume_rerun_unverified"))
+    if rerun_unverified and not resume:
+        raise pytest.UsageError("--mt-resume-rerun-unverified only makes sense with --mt-resume")
     dask, dask_batch = _dask_options(config, campaign)
     return Options(
         followups,
@@ -255,6 +267,7 @@ def parse_options(config: pytest.Config) -> Options:
         baseline=_baseline_option(config, campaign),
         job_summary=_job_summary_option(config),
         campaign_cases=_cases_option(config),
+        rerun_unverified=rerun_unverified,
     )
 
 

@@ -256,9 +256,24 @@ def format_table(result: CampaignResult) -> list[str]:
     if result.source_crashes:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
     lines.extend(_not_applicable_lines(result))
+    lines.extend(_dropped_lines(result, _SHOWN_EXAMPLES))
     lines.append(describe_execution(result.execution))
     lines.extend(_violation_lines(result, _SHOWN_EXAMPLES))
     return lines
+
+
+def _dropped_lines(result: CampaignResult, limit: int | None) -> list[str]:
+    """Logged records a resume did not trust, whose sources ran again."""
+    if not result.dropped:
+        return []
+    shown = result.dropped if limit is None else result.dropped[:limit]
+    more = len(result.dropped) - len(shown)
+    return [
+        f"{len(result.dropped)} logged record(s) did not verify and their sources were run "
+        "again (--mt-resume-rerun-unverified):",
+        *(f"  {line}" for line in shown),
+        *([f"  ... and {more} more (report.json lists them)"] if more else []),
+    ]
 
 
 def _not_applicable_lines(result: CampaignResult) -> list[str]:
@@ -324,6 +339,9 @@ def to_markdown(
     if categories:
         parts += ["", "## Per category", ""]
         parts.append(_markdown_table(_category_header(result), categories))
+    dropped = _dropped_lines(result, None)
+    if dropped:
+        parts += ["", dropped[0], "", *(f"- {line.strip()}" for line in dropped[1:])]
     parts += ["", describe_execution(result.execution)]
     violations = _violation_lines(result, None)
     if violations:

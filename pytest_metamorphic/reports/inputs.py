@@ -165,12 +165,15 @@ def _decode_frame(spec: Mapping[str, Any], folder: Path, name: str) -> Any:
                 path=record,
             )
         where = f"{name}.roi"
-        roi = ROI.from_polygons(
-            field(roi, "polygons", list, where=where, path=record),
-            cell_size=field(roi, "cell_size", (int, float), where=where, path=record),
-            extend_dist=field(roi, "extend_dist", (int, float), where=where, path=record),
-            raster_range=field(roi, "raster_range", (int, float), where=where, path=record),
-        )
+        try:
+            roi = ROI.from_polygons(
+                field(roi, "polygons", list, where=where, path=record),
+                cell_size=field(roi, "cell_size", (int, float), where=where, path=record),
+                extend_dist=field(roi, "extend_dist", (int, float), where=where, path=record),
+                raster_range=field(roi, "raster_range", (int, float), where=where, path=record),
+            )
+        except InvalidArgument as error:  # range-checked on load, named by the record
+            raise DataError(f"{where}: {error}", path=record) from None
     boxes = []
     for index, box in enumerate(field(spec, "boxes", list, where=name, path=record, default=[])):
         where = f"{name}.boxes[{index}]"

@@ -228,3 +228,64 @@ def test_the_gate_is_the_same_on_a_dask_cluster(
         if line.startswith("gate FAILED") or line.lstrip().startswith(("ok ", "FAIL", "n="))
     ]
     assert lines[: len(lines) // 2] == lines[len(lines) // 2 :]
+
+
+FULL_DISK = """
+import errno
+import pytest
+from pytest_metamorphic.core.campaign import log
+
+class Full:
+    # the log's file on a disk that fills up after 10 records
+    def __init__(self, handle):
+        self.handle, self.left = handle, 10
+    def write(self, text):
+        self.left -= 1
+        if self.left < 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return self.handle.write(text)
+    def __getattr__(self, name):
+        return getattr(self.handle, name)
+
+if WHEN == "run":
+    opened = log._Writer.__init__
+    def full(self, path, header):
+        opened(self, path, header)
+        self.handle = Full(self.handle)
+    log._Writer.__init__ = full
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionfinish(session):
+    if WHEN == "report":  # the report cannot be put in place (as on a full disk)
+        (session.config.rootpath / "mt-campaigns" / "dedupe" / "report.json").mkdir()
+"""
+
+
+@pytest.mark.parametrize("when", ["run", "report"])
+def test_a_full_disk_fails_clearly_and_keeps_the_logs(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester, when: str
+) -> None:
+    # Before: a raw OSError traceback from pytest_sessionfinish and no summary line.
+    _write(pytester, sources=60)
+    pytester.makeconftest(FULL_DISK.replace("WHEN", repr(when)))
+    result = _run(pytester, monkeypatch)
+    assert result.ret == pytest.ExitCode.TESTS_FAILED
+    if when == "run":
+        result.assert_outcomes(failed=1)
+        result.stdout.fnmatch_lines(
+            [
+                "*campaign 'dedupe': could not write the campaign log *shard-0-of-1.jsonl "
+                "(No space left on device)*"
+            ]
+        )
+        assert "Traceback" not in result.stdout.str()
+    else:
+        result.assert_outcomes(passed=1)
+        result.stdout.fnmatch_lines(
+            ["*metamorphic reports NOT written*", "*IsADirectoryError*--mt-resume*"]
+        )
+        (pytester.path / "mt-campaigns" / "dedupe" / "report.json").rmdir()
+    pytester.makeconftest("")
+    resumed = _run(pytester, monkeypatch, "--mt-resume")
+    resumed.assert_outcomes(passed=1)
+    resumed.stdout.fnmatch_lines(["*(complete)*", "*sources read back from the logs*"])

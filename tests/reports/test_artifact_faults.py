@@ -226,3 +226,23 @@ def test_pictures_draw_a_moved_follow_up_back_in_the_source_frame() -> None:
             assert math.dist(box.center[:2], twin.center[:2]) < 1e-6
     # Follow-ups that do not move the scene are drawn as they are.
     assert _in_source_frame(source, {"n": 10}) == (source, "")
+
+
+ROI_SPEC = {"polygons": [[[0, 0], [5, 0], [5, 5]]], "extend_dist": 0.0}
+
+
+@pytest.mark.parametrize(
+    ("roi", "message"),
+    [
+        # Before: loaded, then MemoryError (149 GiB) at the ROI's first lookup
+        ({**ROI_SPEC, "cell_size": 1e-9, "raster_range": 1e9}, "cells a side; at most 16384"),
+        ({**ROI_SPEC, "cell_size": 0.25, "raster_range": -3}, "raster_range"),
+        ({**ROI_SPEC, "cell_size": float("nan"), "raster_range": 70}, "cell_size"),
+    ],
+)
+def test_an_roi_grid_is_range_checked_on_load(
+    tmp_path: Path, roi: dict[str, Any], message: str
+) -> None:
+    with pytest.raises(DataError, match=rf"source\.roi: .*{message}") as info:
+        load_case(make(tmp_path / "a", source=frame_spec(roi=roi)))
+    assert "record.json" in str(info.value)

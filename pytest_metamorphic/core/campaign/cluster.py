@@ -143,7 +143,9 @@ def connect(cluster: Any, *, timeout: float | None = None) -> Iterator[Any]:
                 n_workers=workers,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=":0",  # a free port: never clash with a running cluster
+                # Loopback only: a scheduler runs any code sent to it (docs/campaigns.md).
+                host="127.0.0.1",
+                dashboard_address="127.0.0.1:0",  # a free port: never clash with another
                 silence_logs=logging.ERROR,
             )
         try:

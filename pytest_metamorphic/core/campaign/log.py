@@ -17,12 +17,26 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pytest_metamorphic.core.campaign.records import (
+    CHECKED,
+    MAX_LINE,
+    parse_line,
+    seal,
+    verify_record,
+)
 from pytest_metamorphic.core.campaign.results import CampaignResult, SizeCounts, tally
 from pytest_metamorphic.core.campaign.spec import Campaign
-from pytest_metamorphic.core.errors import InvalidArgument, OtherSystemError
+from pytest_metamorphic.core.errors import (
+    CampaignLogError,
+    DataError,
+    InvalidArgument,
+    OtherSystemError,
+)
+from pytest_metamorphic.core.files import check_regular
 from pytest_metamorphic.core.locks import exclusive
 
 __all__ = [
+    "Check",
     "LogFile",
     "ShardLogs",
     "as_logs",
@@ -37,10 +51,34 @@ SYNC_SECONDS = 1.0
 _LAYOUT = re.compile(r"shard-\d+-of-(\d+)\.jsonl")
 
 
+@dataclass(frozen=True)
+class Check:
+    """How a resume checks the records it reads back: ``verify(record)`` gives a reason a
+    record cannot be trusted (or None); ``rerun``: such records are dropped and their
+    sources run again (named in the result's ``dropped``) instead of being an error."""
+
+    verify: Callable[[dict[str, Any]], str | None] | None = None
+    rerun: bool = False
+
+
 def read_log(
-    path: Path, header: dict[str, Any], system: dict[str, str] | None = None
+    path: Path,
+    header: dict[str, Any],
+    system: dict[str, str] | None = None,
+    *,
+    verify: Callable[[dict[str, Any]], str | None] | None = None,
+    dropped: list[str] | None = None,
 ) -> Iterator[dict[str, Any]]:
-    """The records of a log whose header is ``header`` (the campaign's).
+    """The records of a log whose header is ``header`` (the campaign's), each verified
+    (:mod:`pytest_metamorphic.core.campaign.records`).
+
+    Parameters
+    ----------
+    verify : callable(record) -> reason or None, optional
+        A further check of each record (a resume re-derives the source's input digest).
+    dropped : list, optional
+        Records that do not verify are skipped (their sources run again) and named here
+        as ``"file:line: reason"``; without it such a record is an error.
 
     Raises
     ------
@@ -49,18 +87,60 @@ def read_log(
     OtherSystemError
         ``system`` is given and the log records another system under test (logs written
         before 0.5 record none and are accepted).
+    DataError
+        The log is not a regular file, or a record is malformed or does not verify
+        (naming the file and line).
     """
+    check_regular(path, what="campaign log")
     with path.open(encoding="utf-8") as handle:
-        lines = handle.read().splitlines()
-    if not lines:
-        return
+        first = handle.readline(MAX_LINE + 1)
+        if not first:
+            return
+        logged = _header(first, path)
+        _same_campaign(logged, header, system, path)
+        number, line = 1, handle.readline(MAX_LINE + 1)
+        while line:
+            number += 1
+            following = handle.readline(MAX_LINE + 1)
+            where = f"{path}:{number}"
+            try:
+                record = parse_line(line.rstrip("\n"), where)
+            except json.JSONDecodeError:
+                if not following and not line.endswith("\n"):
+                    return  # a line cut off by an interruption: that source is simply redone
+                raise DataError(f"{where}: corrupt campaign record (not JSON)") from None
+            reason = verify_record(record, header, logged, where)
+            if reason is None and verify is not None:
+                reason = verify(record)
+            if reason is None:
+                yield record
+            elif dropped is not None:
+                dropped.append(f"{where}: {reason}")
+            else:
+                raise DataError(
+                    f"{where}: the record of source {record.get('source')} does not verify: "
+                    f"{reason}. Delete the log to start afresh, or resume with "
+                    "--mt-resume-rerun-unverified (run_campaign(unverified='rerun')) to run "
+                    "such sources again"
+                )
+            line = following
+
+
+def _header(line: str, path: Path) -> dict[str, Any]:
     try:
-        found = json.loads(lines[0])
+        found = parse_line(line.rstrip("\n"), f"{path}:1")
     except json.JSONDecodeError:
         raise InvalidArgument(f"{path}: first line is not a campaign header") from None
     if not isinstance(found, dict):
         raise InvalidArgument(f"{path}: first line is not a campaign header")
-    logged_system = found.pop("system", None)
+    return found
+
+
+def _same_campaign(
+    logged: dict[str, Any], header: dict[str, Any], system: dict[str, str] | None, path: Path
+) -> None:
+    found = {k: v for k, v in logged.items() if k not in ("system", CHECKED)}
+    logged_system = logged.get("system")
     if found != header:
         raise InvalidArgument(
             f"{path} holds results of a different campaign ({found}); expected {header}. "
@@ -73,13 +153,6 @@ def read_log(
             "use another log, run without resume (the log is set aside, not lost), or pass "
             'resume="any-system" (--mt-resume-any-system) if the change is intended.'
         )
-    for number, line in enumerate(lines[1:], start=2):
-        try:
-            yield json.loads(line)
-        except json.JSONDecodeError:
-            if number == len(lines):
-                return  # a line cut off by an interruption: that source is simply redone
-            raise InvalidArgument(f"{path}:{number}: corrupt campaign record") from None
 
 
 def set_aside(path: Path) -> None:
@@ -123,7 +196,9 @@ def logged_digest(logs: Any, campaign: Campaign, index: int) -> str | None:
     for path in logs.paths():
         if not path.exists() or not path.stat().st_size:
             continue
-        for record in read_log(path, campaign.header()):
+        # Only records that verify say what the system gave (the others are rerun or refused
+        # by the read that tallies them).
+        for record in read_log(path, campaign.header(), dropped=[]):
             if record.get("source") == index and "digest" in record:
                 return str(record["digest"])
     return None
@@ -143,10 +218,16 @@ def _tally_file(
     header: dict[str, Any],
     wanted: Container[int],
     system: dict[str, str] | None = None,
+    check: Check | None = None,
 ) -> None:
-    if not path.exists() or not path.stat().st_size:
+    if not path.exists() and not path.is_symlink():
         return
-    for record in read_log(path, header, system):
+    check_regular(path, what="campaign log")
+    if not path.stat().st_size:
+        return
+    verify = None if check is None else check.verify
+    dropped = result.dropped if check is not None and check.rerun else None
+    for record in read_log(path, header, system, verify=verify, dropped=dropped):
         if record["source"] in wanted and record["source"] not in result.sources_done:
             tally(result, record)
 
@@ -177,6 +258,11 @@ def _drop_cut_off_record(path: Path) -> None:
             block = min(size, block * 2)
 
 
+def _file_header(path: Path) -> dict[str, Any]:
+    with path.open(encoding="utf-8") as handle:
+        return _header(handle.readline(MAX_LINE + 1), path)
+
+
 class _Writer:
     """Appends records to one log: each flushed at once (a killed process loses nothing
     written), fsynced at least every ``SYNC_SECONDS`` and on close (an OS crash loses at
@@ -184,19 +270,35 @@ class _Writer:
 
     def __init__(self, path: Path, header: dict[str, Any]) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
+        if path.exists() or path.is_symlink():
+            check_regular(path, what="campaign log")
         _drop_cut_off_record(path)
         fresh = not path.exists() or path.stat().st_size == 0
+        # Records are sealed with the header line of the file they go to: on a resume that
+        # is the header the file already has (resume="any-system" keeps the old system).
+        self.header = {**header, CHECKED: 1} if fresh else _file_header(path)
+        self.path = path
         self.handle = path.open("a", encoding="utf-8")
         self.synced = time.monotonic()
         if fresh:
-            self.write(header)
+            self._line(self.header)
             self.sync()
 
     def write(self, record: dict[str, Any]) -> None:
-        self.handle.write(json.dumps(record, separators=(",", ":")) + "\n")
-        self.handle.flush()
-        if time.monotonic() - self.synced >= SYNC_SECONDS:
-            self.sync()
+        self._line(seal(self.header, record) if self.header.get(CHECKED) else record)
+
+    def _line(self, data: dict[str, Any]) -> None:
+        try:
+            self.handle.write(json.dumps(data, separators=(",", ":")) + "\n")
+            self.handle.flush()
+            if time.monotonic() - self.synced >= SYNC_SECONDS:
+                self.sync()
+        except OSError as error:
+            raise CampaignLogError(
+                f"could not write the campaign log {self.path} ({error.strerror or error}); "
+                "the records written before are intact: free the space (or fix the folder) "
+                "and run again with --mt-resume to continue where it stopped"
+            ) from error
 
     def sync(self) -> None:
         os.fsync(self.handle.fileno())
@@ -224,9 +326,10 @@ class LogFile:
         *,
         keep_examples: int = 20,
         system: dict[str, str] | None = None,
+        check: Check | None = None,
     ) -> CampaignResult:
         result = _empty_result(campaign, keep_examples)
-        _tally_file(result, self.path, campaign.header(), indices, system)
+        _tally_file(result, self.path, campaign.header(), indices, system, check)
         result._trim_examples()
         return result
 
@@ -292,6 +395,7 @@ class ShardLogs:
         *,
         keep_examples: int = 20,
         system: dict[str, str] | None = None,
+        check: Check | None = None,
     ) -> CampaignResult:
         result = _empty_result(campaign, keep_examples)
         indices = indices if isinstance(indices, (range, set, frozenset)) else set(indices)
@@ -299,9 +403,9 @@ class ShardLogs:
             mine = shard_indices(campaign.sources, shard, self.shards)
             wanted = [index for index in mine if index in indices]
             if wanted:
-                _tally_file(result, self.path(shard), campaign.header(), set(wanted), system)
+                _tally_file(result, self.path(shard), campaign.header(), set(wanted), system, check)
         for path in self._other_layouts():  # a source already read is not read again
-            _tally_file(result, path, campaign.header(), indices, system)
+            _tally_file(result, path, campaign.header(), indices, system, check)
         result._trim_examples()
         return result
 
@@ -357,6 +461,7 @@ class _NoLog:
         *,
         keep_examples: int = 20,
         system: dict[str, str] | None = None,
+        check: Check | None = None,
     ) -> CampaignResult:
         return _empty_result(campaign, keep_examples)
 

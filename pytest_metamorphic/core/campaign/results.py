@@ -116,6 +116,9 @@ class CampaignResult:
     keep_examples: int = 20  # per size
     # digests of the source inputs: how many distinct inputs the sources were
     inputs: set[str] = field(default_factory=set)
+    # logged records that did not verify on a resume and whose sources ran again
+    # ("file:line: reason"; resume with unverified="rerun")
+    dropped: list[str] = field(default_factory=list)
     # How the sources were run (engine, workers, seconds): one entry per run or shard.
     # Reported, never compared: the outcome is the same whichever engine ran it.
     execution: list[dict[str, Any]] = field(default_factory=list)
@@ -145,6 +148,7 @@ class CampaignResult:
         self.examples.extend(other.examples)
         self.execution.extend(other.execution)
         self.inputs |= other.inputs
+        self.dropped.extend(other.dropped)
         self._trim_examples()
 
     def _trim_examples(self) -> None:
@@ -196,6 +200,7 @@ class CampaignResult:
             },
             "examples": self.examples,
             "keep_examples": self.keep_examples,
+            **({"dropped": self.dropped} if self.dropped else {}),
             "execution": self.execution,
         }
 
@@ -215,6 +220,7 @@ def result_from_json(data: dict[str, Any]) -> CampaignResult:
         keep_examples=int(data.get("keep_examples", max(20, len(data["examples"])))),
         execution=list(data.get("execution", [])),
         inputs=set(data.get("input_digests", [])),
+        dropped=list(data.get("dropped", [])),
     )
 
 

@@ -9,8 +9,14 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from pytest_metamorphic.core.batching import SystemCalls
-from pytest_metamorphic.core.campaign.identity import output_digest
-from pytest_metamorphic.core.campaign.log import LogLike, as_logs, logged_digest, shard_indices
+from pytest_metamorphic.core.campaign.identity import input_digest, output_digest
+from pytest_metamorphic.core.campaign.log import (
+    Check,
+    LogLike,
+    as_logs,
+    logged_digest,
+    shard_indices,
+)
 from pytest_metamorphic.core.campaign.results import CampaignResult, tally
 from pytest_metamorphic.core.campaign.source import run_source
 from pytest_metamorphic.core.campaign.spec import Campaign, draw_followup
@@ -42,6 +48,32 @@ def _check_same_outputs(campaign: Campaign, logs: Any, index: int, timeout: floa
         "(or the system is not deterministic): use another log, run without resume, or pass "
         'resume="any-system" (--mt-resume-any-system) if the change is intended.'
     )
+
+
+class _SourceCheck:
+    """A resume's check of a logged record: its source, drawn again from the seed, must
+    be the input it recorded (a log of other frames, a cache of another dataset, is not
+    resumed as if it were this campaign's)."""
+
+    def __init__(self, campaign: Campaign) -> None:
+        self.campaign = campaign
+
+    def __call__(self, record: dict[str, Any]) -> str | None:
+        logged = record.get("input")
+        if logged is None or "crash" in record:
+            return None  # a log of 0.6 or earlier, or a source that could not be drawn
+        index = record["source"]
+        try:
+            now = input_digest(self.campaign.source(self.campaign.source_rng(index), index))
+        except Exception as error:
+            return f"source {index} cannot be drawn again ({type(error).__name__}: {error})"
+        if now != logged:
+            return (
+                f"it records source {index} as input {logged}, but the campaign's source "
+                f"{index} is now {now} (the log is of other data: frames changed on disk, or "
+                "a cache of another run)"
+            )
+        return None
 
 
 @dataclass(frozen=True)
@@ -90,6 +122,7 @@ def run_campaign(
     timeout: float | None = None,
     cluster: Any = None,
     batch_size: int | None = None,
+    unverified: Literal["error", "rerun"] = "error",
 ) -> CampaignResult:
     """Run (a shard of) a campaign and return its aggregated result.
 
@@ -126,12 +159,21 @@ def run_campaign(
     batch_size : int, optional
         Sources per cluster task; by default guided (several sources per task early on,
         to amortise the engine's ~1 ms per task, one per task towards the end).
+    unverified : "error" or "rerun"
+        On a resume, every record read back is verified
+        (:mod:`~pytest_metamorphic.core.campaign.records`: its shape, its check against
+        the log's header, and its source input, drawn again from the seed and compared
+        with the input digest it recorded). A record that does not verify is a
+        ``DataError`` naming the file and line; ``"rerun"`` drops it instead, runs its
+        source again, and lists it in the result's ``dropped``.
     """
     timeout = check_timeout(timeout)
     if not isinstance(campaign, Campaign):
         raise InvalidArgument(f"campaign={campaign!r} must be a Campaign")
     if resume not in (True, False, "any-system"):
         raise InvalidArgument(f"resume={resume!r} must be True, False or 'any-system'")
+    if unverified not in ("error", "rerun"):
+        raise InvalidArgument(f"unverified={unverified!r} must be 'error' or 'rerun'")
     system = campaign.system_identity()
     logs = as_logs(log)
     indices = shard_indices(campaign.sources, shard, shards)
@@ -148,7 +190,10 @@ def run_campaign(
         if not resume:
             logs.set_aside(indices)
         checked = system if resume is True else None
-        result = logs.read(campaign, indices, keep_examples=keep_examples, system=checked)
+        check = Check(_SourceCheck(campaign), rerun=unverified == "rerun") if resume else None
+        result = logs.read(
+            campaign, indices, keep_examples=keep_examples, system=checked, check=check
+        )
         if checked is not None and result.sources_done:
             _check_same_outputs(campaign, logs, min(result.sources_done), timeout)
         resumed = len(result.sources_done)

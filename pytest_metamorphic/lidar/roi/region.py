@@ -58,6 +58,9 @@ __all__ = ["ROI", "ContainmentMethod"]
 ContainmentMethod = Literal["raster", "exact"]
 
 
+MAX_BITMAP_SIDE = 16384  # cells a side of the ROI bitmap: 268 million cells, 268 MB
+
+
 class ROI:
     """A region of interest: the union of simple polygons, with Apollo's rasterisation.
 
@@ -145,6 +148,14 @@ class ROI:
         if raster_range <= cell_size:
             raise InvalidArgument(
                 f"raster_range={raster_range} must be larger than cell_size={cell_size}"
+            )
+        side = 2.0 * raster_range / cell_size
+        if side > MAX_BITMAP_SIDE:
+            # 1e9 m at 1e-9 m asked for a 149 GiB bitmap at the first lookup
+            raise InvalidArgument(
+                f"cell_size={cell_size:g} over raster_range={raster_range:g} makes a bitmap of "
+                f"{side:.3g} cells a side; at most {MAX_BITMAP_SIDE} (Apollo: 0.25 m over 120 m, "
+                f"960): raise cell_size to at least {2.0 * raster_range / MAX_BITMAP_SIDE:.3g}"
             )
         if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
             polygons = [polygons]

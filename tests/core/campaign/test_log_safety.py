@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import subprocess
 import sys
 import time
@@ -13,7 +14,12 @@ from pathlib import Path
 import pytest
 
 from pytest_metamorphic.core.campaign import ShardLogs, run_campaign
-from pytest_metamorphic.core.errors import FolderInUse, InvalidArgument, OtherSystemError
+from pytest_metamorphic.core.errors import (
+    DataError,
+    FolderInUse,
+    InvalidArgument,
+    OtherSystemError,
+)
 from pytest_metamorphic.core.locks import exclusive
 from tests.core.campaign.test_campaign import Lossy, campaign
 
@@ -106,10 +112,11 @@ def test_a_log_of_an_earlier_version_without_a_system_still_resumes(tmp_path: Pa
     interrupted(log, Lossy())
     lines = log.read_text().splitlines()
     header = json.loads(lines[0])
-    del header["system"]
+    del header["system"], header["checked"]  # as 0.4 wrote it: no system, no checks
     records = [json.loads(line) for line in lines[1:]]
     for record in records:
-        record.pop("digest", None)
+        for key in ("digest", "check", "input"):
+            record.pop(key, None)
     log.write_text("\n".join(json.dumps(x) for x in [header, *records]) + "\n")
     resumed = run_campaign(campaign(Renamed()), log=log, resume=True)  # nothing to compare
     assert resumed.complete
@@ -167,3 +174,149 @@ def test_a_campaign_whose_sources_all_crash_saves_no_calls() -> None:
 
     result = run_campaign(campaign(broken, sources=2))  # type: ignore[arg-type]
     assert result.source_crashes == 2 and result.sut_calls_saved == 0
+
+
+# -- logs that cannot be forged by accident or by a stale cache -------------------------------
+
+
+def _logged(tmp_path: Path) -> tuple[Path, list[dict]]:
+    """An interrupted run's log (20 of 60 sources), and its lines as JSON."""
+    log = tmp_path / "log.jsonl"
+    interrupted(log, Lossy())
+    return log, [json.loads(line) for line in log.read_text().splitlines()]
+
+
+def _rewrite(log: Path, lines: list) -> None:
+    log.write_text(
+        "\n".join(line if isinstance(line, str) else json.dumps(line) for line in lines) + "\n"
+    )
+
+
+def _first_pair_with_a_verdict(records: list[dict]) -> tuple[int, dict]:
+    for number, record in enumerate(records[1:], start=2):
+        for pair in record["pairs"]:
+            if "holds" in pair:
+                return number, pair
+    raise AssertionError("no pair with a verdict")
+
+
+def test_an_edited_verdict_is_refused_naming_the_file_and_line(tmp_path: Path) -> None:
+    # Before: a record edited to "holds": false resumed as a violation, with no warning.
+    log, lines = _logged(tmp_path)
+    number, pair = _first_pair_with_a_verdict(lines)
+    pair["holds"] = not pair["holds"]
+    _rewrite(log, lines)
+    with pytest.raises(DataError, match=rf"log\.jsonl:{number}: .*its check does not match"):
+        run_campaign(campaign(Lossy()), log=log, resume=True)
+
+
+def test_an_edited_record_can_be_dropped_and_run_again(tmp_path: Path) -> None:
+    fresh = run_campaign(campaign(Lossy()))
+    log, lines = _logged(tmp_path)
+    number, pair = _first_pair_with_a_verdict(lines)
+    pair["holds"] = not pair["holds"]
+    _rewrite(log, lines)
+    resumed = run_campaign(campaign(Lossy()), log=log, resume=True, unverified="rerun")
+    assert [line.split(": ")[0] for line in resumed.dropped] == [f"{log}:{number}"]
+    assert resumed.outcome_json()["sizes"] == fresh.outcome_json()["sizes"]  # ran again
+    from pytest_metamorphic.reports.campaign import format_table
+
+    assert any("1 logged record(s) did not verify" in line for line in format_table(resumed))
+
+
+def test_a_record_of_another_system_is_refused(tmp_path: Path) -> None:
+    # Before: accepted; the table gained a violation and a phantom "truck" row.
+    log, lines = _logged(tmp_path)
+    forged = dict(lines[1], source=59, digest="0123456789abcdef")
+    forged["pairs"] = [
+        {
+            "size": 10,
+            "followup": 0,
+            "o": 1,
+            "o2": 0,
+            "holds": False,
+            "categories": {"truck": [1, 0]},
+        }
+    ]
+    _rewrite(log, [*lines, forged])
+    with pytest.raises(DataError, match=rf"log\.jsonl:{len(lines) + 1}: .*check does not match"):
+        run_campaign(campaign(Lossy()), log=log, resume=True)
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        (lambda r: r.update(source="0"), "source is str, not an integer"),
+        (lambda r: r.update(source=10**6), r"source=1000000 is outside \[0, 59\]"),
+        (lambda r: r.update(pairs={}), "pairs is dict, not a list"),
+        (lambda r: r["pairs"][0].update(size=7), "pair size 7 is not one of the campaign's"),
+        (lambda r: r["pairs"][0].update(followup=-1), r"a pair's follow-up=-1 is outside \[0, 1\]"),
+    ],
+)
+def test_a_record_of_wrong_types_is_an_error_not_skipped(
+    tmp_path: Path,
+    change,
+    words: str,  # type: ignore[no-untyped-def]
+) -> None:
+    log, lines = _logged(tmp_path)
+    change(lines[3])
+    _rewrite(log, lines)
+    with pytest.raises(DataError, match=rf"log\.jsonl:4: {words}"):
+        run_campaign(campaign(Lossy()), log=log, resume=True)
+
+
+def test_a_deeply_nested_record_is_an_error_not_a_recursion_error(tmp_path: Path) -> None:
+    log, lines = _logged(tmp_path)
+    _rewrite(log, [lines[0], "[" * 100_000 + "]" * 100_000, *lines[1:]])
+    with pytest.raises(DataError, match=r"log\.jsonl:2: a record nested too deeply"):
+        run_campaign(campaign(Lossy()), log=log, resume=True)
+
+
+def test_a_fifo_in_place_of_a_shard_log_is_refused(tmp_path: Path) -> None:
+    # Before: io.UnsupportedOperation: not seekable.
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    os.mkfifo(folder / "shard-0-of-1.jsonl")
+    for resume in (True, False):
+        with pytest.raises(DataError, match=r"shard-0-of-1\.jsonl.*FIFO"):
+            run_campaign(campaign(Lossy(), sources=4), log=ShardLogs(folder, 1), resume=resume)
+
+
+def test_a_log_of_other_input_data_is_not_resumed(tmp_path: Path) -> None:
+    """A cache restored for another dataset: same campaign, same system, other inputs
+    (frames changed on disk). The source is drawn again and compared with its record."""
+    log, _ = _logged(tmp_path)
+
+    def other_data(rng, index):  # type: ignore[no-untyped-def]
+        return index, ("bus",), 0
+
+    changed = dataclasses.replace(campaign(Lossy()), source=other_data)
+    with pytest.raises(DataError, match=r"log\.jsonl:2: .*records source 0 as input .* now"):
+        run_campaign(changed, log=log, resume=True)
+
+
+def test_a_full_disk_fails_the_write_with_a_clear_error_and_keeps_the_log(tmp_path: Path) -> None:
+    """RLIMIT_FSIZE stands in for a full disk (Python ignores SIGXFSZ, so the write fails
+    with EFBIG like ENOSPC); the run stops, the log keeps every complete record, and a
+    resume without the limit finishes the campaign."""
+    log = tmp_path / "log.jsonl"
+    script = (
+        "import resource, sys\n"
+        "sys.path.insert(0, sys.argv[2])\n"
+        "from tests.core.campaign.test_campaign import Lossy, campaign\n"
+        "from pytest_metamorphic.core.campaign import run_campaign\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (6000, 6000))\n"
+        "run_campaign(campaign(Lossy()), log=sys.argv[1])\n"
+    )
+    root = str(Path(__file__).resolve().parents[3])
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(log), root], capture_output=True, text=True
+    )
+    assert done.returncode != 0
+    assert "CampaignLogError: could not write the campaign log" in done.stderr
+    assert "free the space" in done.stderr
+    resumed = run_campaign(campaign(Lossy()), log=log, resume=True)
+    assert resumed.complete
+    assert (
+        resumed.outcome_json()["sizes"] == run_campaign(campaign(Lossy())).outcome_json()["sizes"]
+    )
