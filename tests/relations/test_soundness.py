@@ -168,7 +168,14 @@ def unexplained(found: list[Found]) -> list[str]:
 DETECTORS = {"scikit-learn": SklearnDetector, "DBSCAN ties": TiesDetector}
 
 
-@pytest.mark.parametrize("name", sorted(DETECTORS))
+@pytest.mark.parametrize(
+    "name",
+    # DBSCAN ties take 40 s here: with the slow tests, which run them on every sweep too
+    [
+        pytest.param(n, marks=pytest.mark.slow) if n == "DBSCAN ties" else n
+        for n in sorted(DETECTORS)
+    ],
+)
 def test_every_relation_on_two_kitti_sweeps_and_a_rendered_street(name: str) -> None:
     frames = {"KITTI 1": labelled_kitti(1), "KITTI 4": labelled_kitti(4), "street": street()}
     found = violations(name, DETECTORS[name](), frames, examples=2)

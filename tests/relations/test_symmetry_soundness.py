@@ -46,6 +46,7 @@ def _violations(system, sweeps=range(6), motions=MOTIONS, **tolerances) -> list[
     return found
 
 
+@pytest.mark.slow  # 40 s: DBSCAN on every sweep, turned and mirrored
 def test_dbscan_ties_are_the_same_obstacle_under_turns_and_the_mirror() -> None:
     assert _violations(TIES) == []
 

@@ -36,7 +36,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.lidar.roi.arguments import _finite_float, _non_negative_int, _positive_float
+from pytest_metamorphic.lidar.roi.arguments import (
+    _finite_float,
+    _grid_arguments,
+    _non_negative_int,
+    _positive_float,
+)
 from pytest_metamorphic.lidar.roi.polygon import (
     _as_xy,
     _points_in_polygon,
@@ -56,9 +61,6 @@ from pytest_metamorphic.lidar.roi.roads import _road_pieces
 __all__ = ["ROI", "ContainmentMethod"]
 
 ContainmentMethod = Literal["raster", "exact"]
-
-
-MAX_BITMAP_SIDE = 16384  # cells a side of the ROI bitmap: 268 million cells, 268 MB
 
 
 class ROI:
@@ -140,23 +142,10 @@ class ROI:
         raster_range: float,
         path: str | Path | None = None,
     ) -> ROI:
-        cell_size = _positive_float(cell_size, "cell_size")
-        raster_range = _positive_float(raster_range, "raster_range")
+        cell_size, raster_range = _grid_arguments(cell_size, raster_range)
         extend_dist = _finite_float(extend_dist, "extend_dist")
         if extend_dist < 0:
             raise InvalidArgument(f"extend_dist={extend_dist} must be >= 0")
-        if raster_range <= cell_size:
-            raise InvalidArgument(
-                f"raster_range={raster_range} must be larger than cell_size={cell_size}"
-            )
-        side = 2.0 * raster_range / cell_size
-        if side > MAX_BITMAP_SIDE:
-            # 1e9 m at 1e-9 m asked for a 149 GiB bitmap at the first lookup
-            raise InvalidArgument(
-                f"cell_size={cell_size:g} over raster_range={raster_range:g} makes a bitmap of "
-                f"{side:.3g} cells a side; at most {MAX_BITMAP_SIDE} (Apollo: 0.25 m over 120 m, "
-                f"960): raise cell_size to at least {2.0 * raster_range / MAX_BITMAP_SIDE:.3g}"
-            )
         if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
             polygons = [polygons]
         if isinstance(polygons, (str, bytes)) or not isinstance(polygons, Iterable):

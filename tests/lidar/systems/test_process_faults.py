@@ -225,3 +225,63 @@ def test_braces_in_a_command_are_the_users_text(literal: str) -> None:
     code = f"import json, sys; {literal}; json.dump({{'boxes': []}}, open(sys.argv[2], 'w'))"
     detector = ProcessDetector([sys.executable, "-c", code, "{input}", "{output}"])
     assert detector(CLOUD) == []
+
+
+# -- frame identity: an answer names its input ------------------------------------------------
+
+STALE = """
+import json, sys
+previous = None
+for line in sys.stdin:
+    parts = line.rstrip("\\n").split("\\t")
+    for target in parts[1::2]:
+        json.dump({"boxes": []}, open(target, "w"))
+    print("done\\t" + (previous or parts[0]), flush=True)  # answers the request before
+    previous = parts[0]
+"""
+
+SWAPPED = """
+import json, sys
+for line in sys.stdin:
+    parts = line.rstrip("\\n").split("\\t")
+    inputs, targets = parts[0::2], parts[1::2]
+    for source, target in zip(reversed(inputs), targets):  # a batch's files mixed up
+        json.dump({"input": source, "boxes": []}, open(target, "w"))
+    print("\\t".join(inputs), flush=True)
+"""
+
+ANONYMOUS = """
+import json, sys
+for line in sys.stdin:
+    for target in line.rstrip("\\n").split("\\t")[1::2]:
+        json.dump({"boxes": []}, open(target, "w"))
+    print("done", flush=True)
+"""
+
+
+def test_an_answer_to_an_earlier_request_is_refused() -> None:
+    # Before: the protocol carried no frame identity; nothing noticed.
+    detector = ProcessDetector([sys.executable, "-c", STALE], persistent=True)
+    assert detector(CLOUD) == []  # the first answer names the first frame
+    with pytest.raises(ExternalSystemError, match="names a frame of an earlier request"):
+        detector(CLOUD)
+    detector.close()
+
+
+def test_a_batch_whose_files_name_the_wrong_frames_is_refused() -> None:
+    detector = ProcessDetector([sys.executable, "-c", SWAPPED], persistent=True, batch_size=2)
+    assert detector.run_batch([CLOUD]) == [[]]
+    with pytest.raises(ExternalSystemError, match="the detector mixed up its frames"):
+        detector.run_batch([CLOUD, CLOUD])
+    detector.close()
+
+
+def test_an_answer_that_names_no_frame_is_warned_once() -> None:
+    from pytest_metamorphic import ProtocolWarning
+
+    detector = ProcessDetector([sys.executable, "-c", ANONYMOUS], persistent=True)
+    with pytest.warns(ProtocolWarning, match="names no frame of the request") as warned:
+        detector(CLOUD)
+        detector(CLOUD)
+    assert len(warned) == 1
+    detector.close()
