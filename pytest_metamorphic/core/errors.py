@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:  # relations imports this module
-    from pytest_metamorphic.core.relations import Verdict
+if TYPE_CHECKING:
+    from pytest_metamorphic.core.verdict import Verdict
 
 __all__ = [
     "CampaignLogError",

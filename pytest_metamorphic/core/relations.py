@@ -21,6 +21,7 @@ from typing import Any
 from pytest_metamorphic.core.comparison import describe_value, first_difference
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import EqualityMatcher, Matcher, PredicateMatcher, one_to_one
+from pytest_metamorphic.core.verdict import Verdict
 
 __all__ = [
     "AllOf",
@@ -56,24 +57,6 @@ class CheckContext:
     followup_input: Any = None
     params: Mapping[str, Any] = field(default_factory=dict)
     index: int = 0
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """The outcome of checking one relation on one source/follow-up pair.
-
-    ``bool(verdict)`` is ``verdict.holds``. ``explanation`` says what differs, in words a
-    failure message can show as is; ``details`` holds machine-readable facts (unmatched
-    indices, counts) for reports and artifacts.
-    """
-
-    holds: bool
-    relation: str
-    explanation: str = ""
-    details: Mapping[str, Any] = field(default_factory=dict)
-
-    def __bool__(self) -> bool:
-        return self.holds
 
 
 def unjudged_changes(verdict: Verdict) -> int:

@@ -292,7 +292,8 @@ class _SessionReporter:
             elif key == REPLAY_PROPERTY:
                 self.config.stash[_REPLAY_RESULTS].append(json.loads(str(value)))
         blob = next((v for k, v in report.user_properties if k == CAMPAIGN_PROPERTY), None)
-        if blob is not None:
+        # Only where the shards meet: an xdist worker sees its own shard alone.
+        if blob is not None and not hasattr(self.config, "workerinput"):
             gate_on_report(self.config, report, str(blob))
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:

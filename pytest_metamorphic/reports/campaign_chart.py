@@ -128,6 +128,20 @@ def _label(result: CampaignResult) -> str:
     return str(result.header.get("size_label", "n"))
 
 
+def _group_label(axes: Any, text: str, positions: list[float], *, below: int) -> None:
+    """A group of bars' name, centred under them, ``below`` points under the axis."""
+    axes.annotate(
+        text,
+        (sum(positions) / len(positions), 0),
+        xycoords=("data", "axes fraction"),
+        xytext=(0, -below),
+        textcoords="offset points",
+        ha="center",
+        va="top",
+        fontsize=9,
+    )
+
+
 def _draw_violations(axes: Any, result: CampaignResult) -> None:
     bars = violation_bars(result)
     seen: dict[str, int] = {}
@@ -169,16 +183,7 @@ def _draw_violations(axes: Any, result: CampaignResult) -> None:
     for bar in bars:
         groups.setdefault(bar.size, []).append(bar.position)
     for size, positions in groups.items():
-        axes.annotate(
-            f"{_label(result)}={size}",
-            (sum(positions) / len(positions), 0),
-            xycoords=("data", "axes fraction"),
-            xytext=(0, -44),
-            textcoords="offset points",
-            ha="center",
-            va="top",
-            fontsize=9,
-        )
+        _group_label(axes, f"{_label(result)}={size}", positions, below=44)
     top = max([bar.high for bar in bars] + [1.0])
     axes.set_ylim(0, min(100.0, max(5.0, top * 1.2)))
     axes.set_ylabel("% of pairs violating (Wilson 95%)")
@@ -212,17 +217,7 @@ def _draw_counts(axes: Any, result: CampaignResult) -> None:
         bottoms = [b + h for b, h in zip(bottoms, heights, strict=True)]
     axes.set_xticks(positions, [str(column.size) for column in columns], fontsize=7)
     for name in names:
-        mine = [c.position for c in columns if c.category == name]
-        axes.annotate(
-            name,
-            (sum(mine) / len(mine), 0),
-            xycoords=("data", "axes fraction"),
-            xytext=(0, -24),
-            textcoords="offset points",
-            ha="center",
-            va="top",
-            fontsize=9,
-        )
+        _group_label(axes, name, [c.position for c in columns if c.category == name], below=24)
     label = _label(result)
     axes.set_xlabel(
         "noise points n, per category" if label == "n" else f"{label}, per category",

@@ -93,7 +93,8 @@ def chunked_seeds(n: int, *, unique: bool = True) -> st.SearchStrategy[tuple[lis
     per point cannot give two follow-ups of 1000 points (the test fails its
     ``large_base_example`` health check), and each drawn integer costs ~30 us. Shrinking
     simplifies the chunk seeds; the engine's own reduction then finds the few points that
-    matter. With ``unique``, the chunk seeds differ, so the ``n`` seeds are distinct.
+    matter. The ``n`` seeds are always distinct (so are the points): with ``unique`` the
+    chunk seeds differ; without it a repeated chunk seed is moved to the next free one.
     """
     chunks = min(n, CHUNKS)
     if chunks == 0:
@@ -102,7 +103,19 @@ def chunked_seeds(n: int, *, unique: bool = True) -> st.SearchStrategy[tuple[lis
     top = 2**SEED_BITS // size - 1
 
     def expand(values: list[int]) -> tuple[list[int], list[int]]:
-        return [v * size + j for v in values for j in range(size)][:n], values
+        # A chunk seed drawn twice (shrinking sends them all to 0) would give the same
+        # points twice, and a "minimal set" of one point twice: a repeated chunk moves to
+        # the next free base instead. Distinct chunks keep their seeds, so draws without
+        # repeats are the same as before.
+        bases: list[int] = []
+        taken: set[int] = set()
+        for value in values:
+            base = value
+            while base in taken:
+                base = (base + 1) % (top + 1)
+            taken.add(base)
+            bases.append(base)
+        return [b * size + j for b in bases for j in range(size)][:n], values
 
     chunk_seeds = st.lists(st.integers(0, top), min_size=chunks, max_size=chunks, unique=unique)
     return chunk_seeds.map(expand)
