@@ -54,6 +54,7 @@ def call_with_timeout(
     Exceptions of the call are re-raised as they are. Context variables (the plugin's
     recorder) are visible inside the call.
     """
+    __tracebackhide__ = True  # a crash's traceback starts at the user's system
     if seconds is None:
         return fn(*args, **kwargs)
     with _abandoned_lock:

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 # Loaded here so in-process pytester runs never re-import numpy/scipy extension modules
 # (they cannot be loaded twice in one process, and pytester unloads what a run imported).
 import numpy  # noqa: F401
 import pytest
 
-import pytest_metamorphic.core.campaign  # noqa: F401
+import pytest_metamorphic.core.campaign
 
 HEADER = """
 from hypothesis import settings, strategies as st
@@ -644,3 +645,42 @@ def test_bad_mt_timeout_is_a_usage_error(pytester: pytest.Pytester, value: str) 
     result = pytester.runpytest(f"--mt-timeout={value}")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--mt-timeout*seconds*"])
+
+
+def test_failure_output_is_about_the_users_code(pytester: pytest.Pytester) -> None:
+    """A crash's traceback starts at the user's test (the library's call_with_timeout is
+    not printed), and Hypothesis's explanation lists no line of the plugin's own code."""
+    _write(
+        pytester,
+        """
+@settings(max_examples=20, database=None)
+@metamorphic(source=st.lists(st.integers(), min_size=1), followup=lambda xs: st.permutations(xs),
+             relation=relations.equal(), followups=2)
+def test_sort(xs):
+    return my_sort(xs)
+
+def my_sort(xs):
+    if len(xs) > 2 and xs[0] > xs[-1]:
+        return list(xs)
+    return sorted(xs)
+
+@settings(max_examples=20, database=None)
+@metamorphic(source=st.lists(st.integers(), min_size=1), followup=lambda xs: st.permutations(xs),
+             relation=relations.equal(), followups=2)
+def test_crash(xs):
+    return crashy(xs)
+
+def crashy(xs):
+    if len(xs) > 3:
+        raise ValueError("boom")
+    return sorted(xs)
+""",
+    )
+    result = pytester.runpytest("-p", "no:cacheprovider")
+    result.assert_outcomes(failed=2)
+    output = result.stdout.str()
+    assert "def call_with_timeout" not in output  # before: its source and docstring
+    result.stdout.fnmatch_lines(["*return crashy(xs)*", '*raise ValueError("boom")*'])
+    package = str(Path(pytest_metamorphic.__file__).resolve().parent)
+    explained = [line for line in output.splitlines() if line.startswith("E           /")]
+    assert not [line for line in explained if package in line], explained
