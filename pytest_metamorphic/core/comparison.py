@@ -21,16 +21,38 @@ __all__ = ["deep_equal", "describe_value", "first_difference", "value_digest"]
 _MAX_REPR = 120
 
 
+_MAX_ELEMENTS = 6  # elements a list's description names before "... and N more"
+
+
 def describe_value(value: Any) -> str:
-    """A one-line, length-capped description, for failure messages."""
+    """A one-line, length-capped description, for failure messages.
+
+    A value with a ``describe()`` (a box: ``car at (12.1, -3.4)``) is described by it; a
+    list or tuple of such values by its count and the first few, so an output of boxes
+    reads ``3 element(s): car at (10.1, -6.8); pedestrian at (4.0, 2.2); ...`` instead
+    of one box's repr with 16-digit floats cut off mid-number.
+    """
+    own = _own_description(value)
+    if own is not None:
+        return own
+    if isinstance(value, (list, tuple)) and value:
+        parts = [_own_description(item) for item in value[:_MAX_ELEMENTS]]
+        if all(part is not None for part in parts):
+            more = len(value) - len(parts)
+            tail = f"; ... and {more} more" if more else ""
+            return f"{len(value)} element(s): " + "; ".join(map(str, parts)) + tail
+    text = repr(value)
+    return text if len(text) <= _MAX_REPR else text[: _MAX_REPR - 3] + "..."
+
+
+def _own_description(value: Any) -> str | None:
     describe = getattr(value, "describe", None)
-    if callable(describe):
+    if callable(describe) and not isinstance(value, type):
         try:
             return str(describe())
         except Exception:
-            pass
-    text = repr(value)
-    return text if len(text) <= _MAX_REPR else text[: _MAX_REPR - 3] + "..."
+            return None
+    return None
 
 
 def deep_equal(a: Any, b: Any) -> bool:
