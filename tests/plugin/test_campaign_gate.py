@@ -198,6 +198,7 @@ def test_a_campaign_case_replays_until_the_fault_is_fixed(
     fixed.stdout.fnmatch_lines(["*passes now (fixed)*"])
 
 
+@pytest.mark.slow  # test_campaign_examples compares the main job's cases under xdist too
 def test_cases_are_the_same_under_xdist(
     monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
 ) -> None:
