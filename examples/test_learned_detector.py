@@ -128,6 +128,7 @@ test_mr1_cnnseg_full_cloud = campaign_test(
     mr1_campaign(
         full_cloud, name="MR1 cnnseg full_cloud=True", sources=SOURCES, matcher=LEARNED.kept
     ),
+    max_rate=None,  # Apollo's defect, measured (a rate below 1 %), not gated
 )
 test_mr1_cnnseg_roi_only = campaign_test(
     mr1_campaign(

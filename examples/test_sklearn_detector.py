@@ -205,8 +205,14 @@ def _catalog() -> FrameCatalog:
 
 if KITTI.is_dir():
     # pytest --mt-campaign: MR1 rates with Wilson intervals, 3 follow-ups per sweep and size.
+    # A detector built from PyPI parts, with known weaknesses (see the tests above): these
+    # campaigns measure how often they show (max_rate=None: reported, not gated). Gate
+    # your own detector's with max_rate= or against main's reports (--mt-baseline).
     test_mr1_sklearn_roi_ground = campaign_test(
-        mr1_campaign(SklearnDetector(), name="MR1 sklearn detector", frames=_catalog(), followups=3)
+        mr1_campaign(
+            SklearnDetector(), name="MR1 sklearn detector", frames=_catalog(), followups=3
+        ),
+        max_rate=None,
     )
     test_mr1_sklearn_sweep_ground = campaign_test(
         mr1_campaign(
@@ -214,7 +220,8 @@ if KITTI.is_dir():
             name="MR1 sklearn detector, sweep ground",
             frames=_catalog(),
             followups=3,
-        )
+        ),
+        max_rate=None,
     )
     # How fragile is it where it is not tested above? Rates per relation and severity:
     # quarter turns and the mirror (RANSAC re-sorts), dead lasers and lost packets.
@@ -222,17 +229,20 @@ if KITTI.is_dir():
         symmetry_campaign(
             SklearnDetector(), symmetry="rotation", name="rotation sklearn detector",
             frames=_catalog(),
-        )
+        ),
+        max_rate=None,
     )  # fmt: skip
     test_mirror_sklearn = campaign_test(
         symmetry_campaign(
             SklearnDetector(), symmetry="mirror", name="mirror sklearn detector",
             frames=_catalog(),
-        )
+        ),
+        max_rate=None,
     )  # fmt: skip
     test_packet_loss_sklearn = campaign_test(
         fault_campaign(
             SklearnDetector(), fault="packet_loss", name="lost packets sklearn detector",
             frames=_catalog(), followups=3,
-        )
+        ),
+        max_rate=None,
     )  # fmt: skip
