@@ -55,6 +55,7 @@ from pytest_metamorphic.core.relations import (
 from pytest_metamorphic.core.search_phase import counts_as_new_case
 from pytest_metamorphic.core.stats import (
     DEFAULT_MINIMIZE_BUDGET,
+    DEFAULT_MINIMIZE_SECONDS,
     current_recorder,
 )
 from pytest_metamorphic.core.timeout import call_isolated, call_with_timeout, check_timeout
@@ -296,6 +297,7 @@ class _Runner:
                 check=mr.relation.check,
                 index=index,
                 budget=budget,
+                seconds=recorder.minimize_seconds if recorder else DEFAULT_MINIMIZE_SECONDS,
             )
         except HypothesisException:
             raise

@@ -13,6 +13,7 @@ remaining element makes the relation hold again.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,6 +23,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.minimize import ddmin, one_minimal_sweep, shortest_failing_prefix
 from pytest_metamorphic.core.perturbation import Reducible, find_reducible
 from pytest_metamorphic.core.relations import CheckContext, Verdict
+from pytest_metamorphic.core.timeout import check_timeout
 
 __all__ = ["DEFAULT_BUDGET", "Reduction", "reduce_followup"]
 
@@ -87,6 +89,8 @@ class Reduction:
     fails_without_elements: bool = False
     sizes: tuple[int, ...] = field(default=(), repr=False)  # subset size after each reduction
     count_bound: int | None = None
+    seconds: float | None = None  # the time it was allowed; None: no limit
+    timed_out: bool = False  # it stopped at that limit, keeping the smallest set found
 
     @property
     def size(self) -> int:
@@ -101,6 +105,12 @@ class Reduction:
             status = (
                 "NOT minimal: the relation fails even with none of them (is the system "
                 "deterministic, and does the relation hold for an unchanged input?)"
+            )
+        elif self.timed_out:
+            status = (
+                f"NOT proven minimal: the time limit of {self.seconds:g} s ran out, the "
+                "smallest failing set found so far is kept (raise it with "
+                "--mt-minimize-seconds)"
             )
         else:
             status = (
@@ -157,6 +167,14 @@ def _orders(
     return [[int(i) for i in order] for order in orders] or [list(range(size))]
 
 
+def _smallest_first(kept: tuple[int, ...]) -> tuple[int, tuple[int, ...]]:
+    return len(kept), kept
+
+
+class _OutOfTime(Exception):
+    """The reduction's time limit passed (raised between two system calls)."""
+
+
 def reduce_followup(
     params: Mapping[str, Any],
     *,
@@ -167,6 +185,7 @@ def reduce_followup(
     check: Callable[[Any, Any, CheckContext], Verdict],
     index: int = 0,
     budget: int = DEFAULT_BUDGET,
+    seconds: float | None = None,
 ) -> Reduction | None:
     """Reduce the reducible transform in ``params`` to a 1-minimal failing subset.
 
@@ -187,6 +206,9 @@ def reduce_followup(
         The follow-up's index, passed on in :class:`CheckContext`.
     budget : int
         At most this many ``run`` calls (>= 1).
+    seconds : float, optional
+        At most this much time: a slow system gets the smallest failing set found when
+        the time is up (``timed_out``), never an interrupted reduction.
 
     Returns
     -------
@@ -202,6 +224,8 @@ def reduce_followup(
     """
     if isinstance(budget, bool) or not isinstance(budget, int) or budget < 1:
         raise InvalidArgument(f"budget={budget!r} must be an int >= 1")
+    seconds = check_timeout(seconds, "seconds")
+    deadline = None if seconds is None else time.monotonic() + seconds
     found = find_reducible(params)
     if found is None:
         return None
@@ -220,6 +244,8 @@ def reduce_followup(
         indices = tuple(sorted(chosen))
         if indices in verdicts:  # passes after the first revisit subsets
             return verdicts[indices]
+        if deadline is not None and failing and time.monotonic() > deadline:
+            raise _OutOfTime
         _, value, subset_params = build(indices)
         calls += 1
         try:
@@ -243,18 +269,27 @@ def reduce_followup(
             "relation, so it cannot be reduced"
         )
     sizes: list[int] = []
-    count_bound, current, proven = _count_pass(orders[0], fails, lambda: budget - calls, sizes)
-    for number, order in enumerate(orders):
-        remaining = budget - calls
-        if proven or remaining <= 0:
-            break
-        # Later orders are fallbacks: each pass but the last gets 4/5 of what is left.
-        share = remaining if number == len(orders) - 1 else max(remaining * 4 // 5, 1)
-        kept = set(current)
-        result = ddmin([i for i in order if i in kept], fails, max_calls=share, check_input=False)
-        current = sorted(result.elements)
-        sizes.extend(result.history)
-        proven = result.proven_minimal
+    count_bound, proven, timed_out = None, False, False
+    try:
+        count_bound, current, proven = _count_pass(orders[0], fails, lambda: budget - calls, sizes)
+        for number, order in enumerate(orders):
+            remaining = budget - calls
+            if proven or remaining <= 0:
+                break
+            # Later orders are fallbacks: each pass but the last gets 4/5 of what is left.
+            share = remaining if number == len(orders) - 1 else max(remaining * 4 // 5, 1)
+            kept = set(current)
+            result = ddmin(
+                [i for i in order if i in kept], fails, max_calls=share, check_input=False
+            )
+            current = sorted(result.elements)
+            sizes.extend(result.history)
+            proven = result.proven_minimal
+    except _OutOfTime:
+        # The smallest failing set seen so far stands (the whole set failed first).
+        timed_out, proven = True, False
+        best: tuple[int, ...] = min(failing, key=_smallest_first)
+        current = list(best)
     indices = tuple(current)
     reduced, value, _ = build(indices)
     subset_params, output, verdict = failing[indices]
@@ -274,6 +309,8 @@ def reduce_followup(
         fails_without_elements=() in failing,
         sizes=tuple(sizes),
         count_bound=count_bound,
+        seconds=seconds,
+        timed_out=timed_out,
     )
 
 

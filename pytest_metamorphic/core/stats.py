@@ -19,6 +19,10 @@ DEFAULT_FOLLOWUPS = 2
 DEFAULT_MINIMIZE_BUDGET = 500
 """SUT calls one violation's reduction to a 1-minimal follow-up may spend."""
 
+DEFAULT_MINIMIZE_SECONDS = 120.0
+"""Seconds one reduction may take: a slow system's violation is reported with the smallest
+failing set found by then (500 calls of a 1 s detector would take over 8 minutes)."""
+
 
 @dataclass
 class RelationStats:
@@ -100,6 +104,7 @@ class Recorder:
     followups: int = DEFAULT_FOLLOWUPS
     check_determinism: bool = True
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
+    minimize_seconds: float | None = DEFAULT_MINIMIZE_SECONDS
     timeout: float | None = None
     nodeid: str = ""
     on_violation: Callable[[Any, bool], str | None] | None = field(default=None, repr=False)

@@ -202,6 +202,7 @@ def pytest_runtest_call(item: pytest.Item) -> Generator[None, Any, Any]:
         followups=options.followups,
         check_determinism=options.check_determinism,
         minimize_budget=options.minimize_budget,
+        minimize_seconds=options.minimize_seconds,
         timeout=options.timeout,
         nodeid=item.nodeid,
     )

@@ -173,6 +173,7 @@ def _save_cases(item: pytest.Item, spec: Any, result: Any) -> list[Any]:
         nodeid=nodeid,
         k=k,
         budget=options.minimize_budget,
+        seconds=options.minimize_seconds,
         timeout=options.timeout,
     )
 

@@ -9,7 +9,11 @@ from typing import Literal
 
 import pytest
 
-from pytest_metamorphic.core.stats import DEFAULT_FOLLOWUPS, DEFAULT_MINIMIZE_BUDGET
+from pytest_metamorphic.core.stats import (
+    DEFAULT_FOLLOWUPS,
+    DEFAULT_MINIMIZE_BUDGET,
+    DEFAULT_MINIMIZE_SECONDS,
+)
 
 __all__ = [
     "DEFAULT_ARTIFACTS",
@@ -36,6 +40,7 @@ class Options:
     rerun_unverified: bool = False
     artifacts: Path | None = DEFAULT_ARTIFACTS
     minimize_budget: int = DEFAULT_MINIMIZE_BUDGET
+    minimize_seconds: float | None = DEFAULT_MINIMIZE_SECONDS
     replay: tuple[Path, ...] = ()
     timeout: float | None = None
     dask: str | None = None
@@ -148,6 +153,14 @@ def add_options(parser: pytest.Parser) -> None:
         f"(ini: mt_minimize_budget; default {DEFAULT_MINIMIZE_BUDGET}; 0: do not reduce)",
     )
     group.addoption(
+        "--mt-minimize-seconds",
+        default=None,
+        metavar="SECONDS",
+        help="time one reduction may take; when it runs out the smallest failing follow-up "
+        f"found so far is reported and saved (ini: mt_minimize_seconds; default "
+        f"{DEFAULT_MINIMIZE_SECONDS:g}; 0: no limit)",
+    )
+    group.addoption(
         "--mt-replay",
         action="append",
         default=[],
@@ -197,6 +210,7 @@ def add_options(parser: pytest.Parser) -> None:
     parser.addini("mt_timeout", "seconds one call of the system under test may take", default=None)
     parser.addini("mt_artifacts", "where violation artifacts are saved", default=None)
     parser.addini("mt_minimize_budget", "SUT calls allowed per reduction", default=None)
+    parser.addini("mt_minimize_seconds", "seconds allowed per reduction", default=None)
     parser.addini("mt_followups", "follow-ups per source and relation", default=None)
     parser.addini("mt_campaign_dir", "where campaigns write logs and reports", default=None)
     parser.addini("mt_report", "path of the JSON report", default=None)
@@ -257,6 +271,7 @@ def parse_options(config: pytest.Config) -> Options:
         resume,
         artifacts=_artifacts_option(config),
         minimize_budget=_budget_option(config),
+        minimize_seconds=_minimize_seconds_option(config),
         replay=tuple(_replay_option(config)),
         timeout=_timeout_option(config),
         dask=dask,
@@ -392,6 +407,21 @@ def _budget_option(config: pytest.Config) -> int:
     if budget < 0:
         raise pytest.UsageError(f"{source}={budget} must be >= 0 (0 switches reduction off)")
     return budget
+
+
+def _minimize_seconds_option(config: pytest.Config) -> float | None:
+    raw, source = config.getoption("mt_minimize_seconds"), "--mt-minimize-seconds"
+    if raw is None:
+        raw, source = config.getini("mt_minimize_seconds"), "ini mt_minimize_seconds"
+    if raw in (None, ""):
+        return DEFAULT_MINIMIZE_SECONDS
+    try:
+        seconds = float(raw)
+    except (TypeError, ValueError):
+        raise pytest.UsageError(f"{source}={raw!r} must be a number of seconds") from None
+    if not (seconds >= 0 and seconds != float("inf")):
+        raise pytest.UsageError(f"{source}={raw!r} must be >= 0 seconds (0: no limit)")
+    return seconds or None
 
 
 def _replay_option(config: pytest.Config) -> list[Path]:

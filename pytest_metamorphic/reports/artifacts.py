@@ -216,6 +216,8 @@ def _minimization_json(record: Any) -> dict[str, Any] | None:
         "proven_minimal": reduction.proven_minimal,
         "sut_calls": reduction.calls,
         "budget": reduction.budget,
+        "seconds": reduction.seconds,
+        "timed_out": reduction.timed_out,
         "crashes": reduction.crashes,
         "fails_without_elements": reduction.fails_without_elements,
         "summary": reduction.summary(),

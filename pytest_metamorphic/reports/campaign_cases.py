@@ -101,6 +101,7 @@ def save_cases(
     k: int,
     budget: int,
     timeout: float | None = None,
+    seconds: float | None = None,
 ) -> list[SavedCase]:
     """Save the first ``k`` violations of each size of ``result`` under ``root``.
 
@@ -119,11 +120,13 @@ def save_cases(
         System calls allowed for reducing one case (0: not reduced).
     timeout : float, optional
         Seconds one system call may take.
+    seconds : float, optional
+        Seconds one case's reduction may take.
     """
     saved = []
     for example in first_cases(result, k):
         try:
-            saved.append(_save_one(campaign, example, root, nodeid, budget, timeout))
+            saved.append(_save_one(campaign, example, root, nodeid, (budget, seconds), timeout))
         except Exception as error:  # a case that cannot be saved must not cost the result
             case = SavedCase(example["source"], example["size"], example["followup"], "")
             saved.append(_note(case, f"not saved: {type(error).__name__}: {error}"))
@@ -135,7 +138,7 @@ def _save_one(
     example: Mapping[str, Any],
     root: Path,
     nodeid: str,
-    budget: int,
+    limits: tuple[int, float | None],
     timeout: float | None,
 ) -> SavedCase:
     index, size, f = int(example["source"]), int(example["size"]), int(example["followup"])
@@ -158,6 +161,7 @@ def _save_one(
     if verdict.holds:
         return _note(where, "the pair holds when run again: the system is not deterministic")
     reduction, reduction_note = None, ""
+    budget, seconds = limits
     if budget > 0:
 
         def run(reduced: Any) -> Any:
@@ -176,6 +180,7 @@ def _save_one(
                 check=campaign.relation.check,
                 index=f,
                 budget=budget,
+                seconds=seconds,
             )
         except Exception as error:
             reduction_note = f"could not reduce the follow-up: {type(error).__name__}: {error}"

@@ -476,3 +476,38 @@ def test_a_count_too_large_to_prove_is_stated_with_its_bound() -> None:
     assert not result.proven_minimal and result.calls <= 500
     assert result.count_bound == 37_721 and result.size == 37_721
     assert "the first 37721 ranked element(s) fail and the first 37720 do not" in result.summary()
+
+
+def test_a_slow_system_gets_the_smallest_set_found_when_the_time_is_up() -> None:
+    """A reduction is bounded in time as well as in calls: a system at 60 ms a call gets,
+    after 0.3 s, the smallest failing set found so far (it still fails), marked as cut
+    short by time, not an interrupted run."""
+    import time
+
+    source, items = [150], [*range(10, 50), 7, *range(50, 90)]
+
+    def slow(values: list[int]) -> int:
+        time.sleep(0.06)
+        return buggy_max(values)
+
+    followup = followup_of(source, items)
+    started = time.monotonic()
+    result = reduce_followup(
+        followup.params,
+        source=source,
+        source_output=buggy_max(source),
+        followup_output=buggy_max(followup.input),
+        run=slow,
+        check=MONOTONE.check,
+        budget=1000,
+        seconds=0.3,
+    )
+    assert time.monotonic() - started < 3.0  # stopped at the limit, not after 1000 calls
+    assert result is not None and result.timed_out and not result.proven_minimal
+    kept = [items[i] for i in result.indices]
+    assert 7 in kept and not holds(source, kept)  # the set kept still fails
+    assert result.size < len(items)
+    assert "the time limit of 0.3 s ran out" in result.summary()
+    # without the limit, the same reduction is proven 1-minimal
+    unlimited = reduce(source, items)
+    assert unlimited.proven_minimal and [items[i] for i in unlimited.indices] == [7]
