@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.campaign import CampaignResult
+from pytest_metamorphic.core.campaign.baseline import slug
 from pytest_metamorphic.core.campaign.results import FATE_ORDER
 from pytest_metamorphic.core.files import write_atomically
 from pytest_metamorphic.core.intervals import wilson
@@ -371,19 +372,13 @@ def job_summary(entries: Sequence[tuple[CampaignResult, Any]], folder: Path) -> 
             f"{counts.violations}/{counts.pairs} ({counts.rate('violations')})"
             for _, counts in sorted(result.sizes.items())
         )
-        reports = os.fspath(folder / _slug_of(name))
+        reports = os.fspath(folder / slug(name))
         parts.append(f"| {name} | {state} | {sizes} | {rates} | `{reports}/` |")
     for result, verdict in entries:
         if verdict is not None and not verdict.passed:
             parts += ["", f"### {result.header['campaign']}: gate failed", ""]
             parts += [*_gate_markdown(verdict)]
     return "\n".join(parts) + "\n"
-
-
-def _slug_of(name: str) -> str:
-    from pytest_metamorphic.core.campaign.baseline import slug
-
-    return slug(name)
 
 
 def write_job_summary(
