@@ -210,6 +210,12 @@ def _tested(result: CampaignResult) -> GateCheck:
                 else "no pair was run"
             )
             lines.append(f"NOTHING TESTED at {_label(result)}={size}: {reason}")
+        elif counts.judged == 0 and counts.crashes < counts.pairs:
+            lines.append(
+                f"NOTHING JUDGED at {_label(result)}={size}: in none of its {counts.pairs} "
+                "pairs did the relation judge an element (no obstacle in scope: check the "
+                "ROI, the scope and what the system reports)"
+            )
     if lines:
         return GateCheck("tested", False, tuple(lines))
     pairs = sum(counts.pairs for counts in result.sizes.values())

@@ -28,6 +28,7 @@ _TALLIES = (
     "crashes",
     "unjudged_changes",
     "not_applicable",
+    "judged",
 )
 
 
@@ -44,6 +45,8 @@ class SizeCounts:
     unjudged_changes: int = 0  # pairs that changed only outside the relation's scope
     # follow-ups the transform could not make (no object to insert): never pairs, never run
     not_applicable: int = 0
+    # pairs in which the relation judged at least one element (an obstacle in scope)
+    judged: int = 0
     # category -> [pairs where that category lost elements, kept count, gained]
     categories: dict[str, list[int]] = field(default_factory=dict)
     # category -> violating pairs that blame an element of that category
@@ -88,6 +91,7 @@ class SizeCounts:
             "crashes": self.crashes,
             "unjudged_changes": self.unjudged_changes,
             **({"not_applicable": self.not_applicable} if self.not_applicable else {}),
+            "judged": self.judged,
             "categories": {k: list(v) for k, v in sorted(self.categories.items())},
             "category_violations": dict(sorted(self.category_violations.items())),
             "fates": dict(sorted(self.fates.items())),
@@ -250,6 +254,8 @@ def tally(result: CampaignResult, record: dict[str, Any]) -> None:
             counts.more += 1
         if pair.get("unjudged_changes"):
             counts.unjudged_changes += 1
+        if pair.get("judged", o) > 0:  # logs of 0.6 and earlier: the counted source elements
+            counts.judged += 1
         if not pair["holds"]:
             counts.violations += 1
             result.examples.append({"source": record["source"], **pair})

@@ -10,7 +10,12 @@ from pytest_metamorphic.core.batching import SystemCalls
 from pytest_metamorphic.core.campaign.identity import input_digest, output_digest
 from pytest_metamorphic.core.campaign.spec import Campaign, draw_followup
 from pytest_metamorphic.core.comparison import describe_value
-from pytest_metamorphic.core.relations import CheckContext, Verdict, unjudged_changes
+from pytest_metamorphic.core.relations import (
+    CheckContext,
+    Verdict,
+    judged_count,
+    unjudged_changes,
+)
 
 __all__ = ["run_source"]
 
@@ -132,6 +137,8 @@ def _judge(
     )
     pair["o"], pair["o2"] = n_source, n_followup
     pair["holds"] = verdict.holds
+    judged = judged_count(verdict)
+    pair["judged"] = n_source if judged is None else judged  # elements the relation judged
     outside = unjudged_changes(verdict)
     if outside:
         pair["unjudged_changes"] = outside

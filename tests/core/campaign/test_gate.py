@@ -56,7 +56,7 @@ def _result(*sizes: tuple[int, int, int], sources: int = 100, **counts: int) -> 
     """(size, pairs, violations) per size."""
     header = {"campaign": "c", "relation": "subset", "sources": sources, "seed": 0}
     result = CampaignResult(
-        header, {size: SizeCounts(pairs=n, violations=k) for size, n, k in sizes}
+        header, {size: SizeCounts(pairs=n, violations=k, judged=n) for size, n, k in sizes}
     )
     result.sources_done = set(range(sources))
     for name, value in counts.items():
@@ -106,6 +106,14 @@ def test_expected_violations_fail_when_the_relation_found_none() -> None:
 def test_nothing_tested_and_crashes_are_never_a_pass(result: CampaignResult, words: str) -> None:
     verdict = judge_campaign(result, Gate(max_rate=None))
     assert not verdict.passed and words in verdict.failure_message()
+
+
+def test_a_campaign_that_judged_nothing_is_not_a_pass() -> None:
+    # Found on the VLP-16 / VLP-32C / OS1-64 recordings: detectors whose obstacles all lay
+    # outside the corridor's scope "passed" with no violation in 45 pairs.
+    verdict = judge_campaign(_result((10, 45, 0), judged=0))
+    assert not verdict.passed
+    assert "NOTHING JUDGED at n=10: in none of its 45 pairs" in verdict.failure_message()
 
 
 def test_a_partial_run_cannot_pass_and_allowed_crashes_can() -> None:
