@@ -60,6 +60,16 @@ class Followup:
         params = f", params={dict(self.params)!r}" if self.params else ""
         return f"Followup({self.input!r}{params})"
 
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        # Hypothesis prints a failing case with this: a follow-up reads as its transform
+        # parameters (the noise points, an angle), not as the strategy calls that drew it
+        # (``make(expand([0, 0, ...]))``) nor as a whole point cloud.
+        if self.skipped is not None or not self.params:
+            printer.pretty(self.input) if self.skipped is None else printer.text(repr(self))
+            return
+        params = ", ".join(f"{key}={describe_value(value)}" for key, value in self.params.items())
+        printer.text(f"Followup({describe_value(self.input)}, params={{{params}}})")
+
 
 @dataclass(frozen=True)
 class MetamorphicRelation:
@@ -119,6 +129,33 @@ class MetamorphicCase:
     def __repr__(self) -> str:
         parts = ", ".join(f"{name!r}: {list(items)!r}" for name, items in self.followups.items())
         return f"MetamorphicCase(source={self.source!r}, followups={{{parts}}})"
+
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        # One follow-up per line: a LiDAR case is a frame and a few noise draws, each
+        # readable on its own line of Hypothesis's "Failing test case: ...".
+        printer.text("MetamorphicCase(")
+        with printer.indent(4):
+            printer.break_()
+            printer.text("source=")
+            printer.pretty(self.source)
+            printer.text(",")
+            printer.break_()
+            printer.text("followups={")
+            with printer.indent(4):
+                for name, items in self.followups.items():
+                    printer.break_()
+                    printer.text(f"{name!r}: [")
+                    with printer.indent(4):
+                        for item in items:
+                            printer.break_()
+                            printer.pretty(item)
+                            printer.text(",")
+                    printer.break_()
+                    printer.text("],")
+            printer.break_()
+            printer.text("},")
+        printer.break_()
+        printer.text(")")
 
 
 def _check_transform(followup: Any, what: str) -> None:

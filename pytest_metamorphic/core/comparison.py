@@ -12,11 +12,18 @@ import dataclasses
 import hashlib
 import math
 import re
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import fields, is_dataclass
 from typing import Any
 
-__all__ = ["deep_equal", "describe_value", "first_difference", "value_digest"]
+__all__ = [
+    "deep_equal",
+    "describe_outputs",
+    "describe_value",
+    "first_difference",
+    "value_digest",
+]
 
 _MAX_REPR = 120
 
@@ -43,6 +50,51 @@ def describe_value(value: Any) -> str:
             return f"{len(value)} element(s): " + "; ".join(map(str, parts)) + tail
     text = repr(value)
     return text if len(text) <= _MAX_REPR else text[: _MAX_REPR - 3] + "..."
+
+
+def describe_outputs(source: Any, followup: Any) -> list[str]:
+    """Lines comparing a source output with a follow-up output, for failure messages.
+
+    Lists of values that describe themselves (boxes) are compared by their descriptions,
+    rounded as they print: the lines name what only one side has, not the many elements
+    both share. Other values are described side by side.
+    """
+    left, right = _descriptions(source), _descriptions(followup)
+    if left is None or right is None:
+        return [
+            f"source output:    {describe_value(source)}",
+            f"follow-up output: {describe_value(followup)}",
+        ]
+    only_source = Counter(left) - Counter(right)
+    only_followup = Counter(right) - Counter(left)
+    shared = len(left) - only_source.total()
+    lines = [
+        f"outputs: {len(left)} element(s) in the source, {len(right)} in the follow-up, "
+        f"{shared} described alike"
+    ]
+    for side, only in (("source", only_source), ("follow-up", only_followup)):
+        if only:
+            lines.append(f"  only in the {side} ({only.total()}): {_listed(only)}")
+    if not only_source and not only_followup:
+        difference = first_difference(source, followup)
+        if difference is not None:
+            lines.append(f"  alike as described; the first difference: {difference}")
+    return lines
+
+
+def _descriptions(value: Any) -> list[str] | None:
+    if not isinstance(value, (list, tuple)):
+        return None
+    described = [_own_description(item) for item in value]
+    if any(item is None for item in described):
+        return None
+    return [str(item) for item in described]
+
+
+def _listed(items: Counter[str]) -> str:
+    names = [f"{name} (x{count})" if count > 1 else name for name, count in items.items()]
+    more = len(names) - _MAX_ELEMENTS
+    return "; ".join(names[:_MAX_ELEMENTS]) + (f"; ... and {more} more" if more > 0 else "")
 
 
 def _own_description(value: Any) -> str | None:

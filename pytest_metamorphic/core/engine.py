@@ -39,6 +39,7 @@ from pytest_metamorphic.core.cases import (
 from pytest_metamorphic.core.comparison import first_difference, value_digest
 from pytest_metamorphic.core.errors import (
     InvalidArgument,
+    MetamorphicError,
     MetamorphicViolation,
     NondeterministicSystemError,
     SystemTimeout,
@@ -59,6 +60,7 @@ from pytest_metamorphic.core.stats import (
     current_recorder,
 )
 from pytest_metamorphic.core.timeout import call_isolated, call_with_timeout, check_timeout
+from pytest_metamorphic.core.tracebacks import raise_at_definition
 from pytest_metamorphic.core.violations import (
     ViolationRecord,
     _hypothesis_seed,
@@ -112,6 +114,7 @@ class _Runner:
         isolate: bool = False,
     ) -> None:
         self.fn = fn if not batch else _SingleOfBatch(fn)
+        self.definition = fn  # where failures are reported: the user's test
         self.call = call_isolated if isolate else call_with_timeout
         self.batch_fn = fn if batch else None
         self.batch = batch
@@ -149,6 +152,8 @@ class _Runner:
         self._ahead = self._run_ahead(case, fixtures) if self.batch else {}
         try:
             self._check_case(case, fixtures, recorder)
+        except (MetamorphicViolation, MetamorphicError) as error:
+            raise_at_definition(self.definition, error)  # the traceback names the test
         finally:
             self._ahead = {}
             self._replay_timeout = None

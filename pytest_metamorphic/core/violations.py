@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -9,7 +10,7 @@ from typing import Any
 from hypothesis.errors import HypothesisException
 
 from pytest_metamorphic.core.cases import Followup
-from pytest_metamorphic.core.comparison import describe_value
+from pytest_metamorphic.core.comparison import describe_outputs, describe_value
 from pytest_metamorphic.core.errors import (
     MetamorphicViolation,
 )
@@ -127,11 +128,13 @@ def _violation_error(record: ViolationRecord, saved: str | None) -> MetamorphicV
         lines.append(f"  {record.reduction_note}")
     if item.params:
         lines.append(f"  transform parameters: {_short_params(item.params)}")
-    lines.append(f"  {verdict.explanation}")
+    # One line per unmatched element (a subset check may list several).
+    lines.extend(f"  {part}" for part in re.split(r"; (?=element #)", verdict.explanation))
     if reduction is not None and record.verdict.explanation != verdict.explanation:
         lines.append(f"  with all {reduction.original_size} elements: {record.verdict.explanation}")
-    lines.append(f"  source output:    {describe_value(record.source_output)}")
-    lines.append(f"  follow-up output: {describe_value(record.minimal_output)}")
+    lines.extend(
+        f"  {line}" for line in describe_outputs(record.source_output, record.minimal_output)
+    )
     if saved:
         lines.append(f"  artifacts: {saved}")
     error = MetamorphicViolation("\n".join(lines), relation=record.relation, verdict=verdict)

@@ -20,6 +20,7 @@ import pytest
 
 from pytest_metamorphic.core.errors import NothingTestedWarning
 from pytest_metamorphic.core.stats import Recorder, nothing_tested, recording
+from pytest_metamorphic.core.tracebacks import explain_the_users_code, start_at_the_users_test
 from pytest_metamorphic.plugin.campaigns import (
     CAMPAIGN_PROPERTY,
     CAMPAIGN_RESULT,
@@ -231,29 +232,6 @@ def _report_nothing_tested(recorder: Recorder, strict: bool) -> None:
     warnings.warn(NothingTestedWarning(message), stacklevel=2)
 
 
-_PACKAGE = str(Path(__file__).resolve().parent.parent)
-
-
-def _explain_the_users_code(error: BaseException) -> None:
-    """Drop the plugin's own lines from Hypothesis's explanation ("These lines were always
-    and only run by failing test cases"): the engine runs a comparison only when it fails,
-    which says nothing about the user's code. The whole explanation goes when nothing of
-    the user's is left in it."""
-    notes = getattr(error, "__notes__", None)
-    if not isinstance(notes, list) or "Explanation:" not in notes:
-        return
-    start = notes.index("Explanation:")
-    end = start + 2
-    while end < len(notes) and notes[end].startswith("        "):
-        end += 1
-    lines = notes[start + 2 : end]
-    kept = [line for line in lines if not line.strip().startswith(_PACKAGE)]
-    if len(kept) == len(lines):
-        return
-    located = [line for line in kept if not line.strip().startswith("(and ")]
-    notes[start:end] = notes[start : start + 2] + kept if located else []
-
-
 class _ArtifactSink:
     """Saves a test's violations; imports the writer only when the first one happens."""
 
@@ -273,7 +251,8 @@ class _ArtifactSink:
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
     if call.when == "call" and call.excinfo is not None and _is_metamorphic(item):
-        _explain_the_users_code(call.excinfo.value)
+        explain_the_users_code(call.excinfo.value)
+        start_at_the_users_test(call.excinfo)
     if call.when == "call":
         recorder = item.stash.get(_RECORDER, None)
         if recorder is not None:

@@ -97,6 +97,26 @@ class SessionSummary:
                 )
         return rows
 
+    def _calls_line(self) -> str:
+        """Every SUT call of the run, in parts that add up to the total: the table's column
+        counts a relation's own calls (follow-ups, determinism re-checks, reductions)."""
+        tests = list(self.tests.values())
+        relations = [stats for test in tests for stats in test.relations.values()]
+        parts = {
+            "on sources, each output reused by its follow-ups": sum(t.source_calls for t in tests),
+            "follow-up runs": sum(stats.followups for stats in relations),
+            "re-running sources to check determinism": sum(
+                stats.sut_calls - stats.followups - stats.minimize_calls for stats in relations
+            ),
+            "reducing violations": sum(stats.minimize_calls for stats in relations),
+            "re-running failing cases while Hypothesis shrank them": sum(
+                t.reruns.sut_calls for t in tests
+            ),
+        }
+        total = sum(test.sut_calls for test in tests)
+        shown = [f"{count} {what}" for what, count in parts.items() if count or what.startswith("on ")]
+        return f"{len(tests)} metamorphic test(s), {total} SUT calls: " + " + ".join(shown)
+
     def format_table(self) -> list[str]:
         """The terminal summary: one line per (test, relation)."""
         rows = self.rows()
@@ -133,22 +153,8 @@ class SessionSummary:
             right = [line[i].rjust(widths[i]) for i in range(2, len(line))]
             return "  ".join(left + right)
 
-        total_calls = sum(test.sut_calls for test in self.tests.values())
-        cached = sum(
-            stats.followups for test in self.tests.values() for stats in test.relations.values()
-        )
-        source_calls = sum(test.source_calls for test in self.tests.values())
-        rerun_calls = sum(test.reruns.sut_calls for test in self.tests.values())
-        lines = [fmt(header), *(fmt(line) for line in body)]
-        rerun = f"; {rerun_calls} re-running failing cases while Hypothesis shrank them" * bool(
-            rerun_calls
-        )
-        lines.append(
-            f"{len(self.tests)} metamorphic test(s), {total_calls} SUT calls "
-            f"({source_calls} on sources, each output reused by its follow-ups; "
-            f"{cached} follow-up runs{rerun})"
-        )
-        if rerun_calls:
+        lines = [fmt(header), *(fmt(line) for line in body), self._calls_line()]
+        if any(test.reruns.sut_calls for test in self.tests.values()):
             lines.append(
                 "sources and violations are distinct cases: Hypothesis's shrinking steps and "
                 "the final replay of a failure are not counted again"

@@ -92,6 +92,10 @@ class Frame:
             parts.append(self.sensor.short_name)
         return f"Frame({'; '.join(parts)})"
 
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        # Hypothesis would print a dataclass field by field (the whole cloud's fields).
+        printer.text(repr(self))
+
 
 def _as_pose(pose: ArrayLike | None) -> NDArray[np.float64] | None:
     if pose is None:
