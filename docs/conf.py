@@ -25,6 +25,7 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
+    "sphinx.ext.intersphinx",
     "sphinx.ext.napoleon",
     "sphinx.ext.viewcode",
 ]
@@ -66,8 +67,23 @@ autodoc_mock_imports = [
     "dask",
     "sklearn",
 ]
-html_theme = "alabaster"
+html_theme = "furo"
 html_title = f"pytest-metamorphic {release}"
+html_static_path = ["_static"]
+exclude_patterns += ["_snippets"]
+
+# Links into numpy's, Hypothesis's and pytest's documentation. The build must not need
+# the network (CI has none), so the inventories are written here from the objects this
+# reference names (inventories.py), each pointing at its page on the real site.
+from inventories import write_inventories  # noqa: E402
+
+intersphinx_mapping = write_inventories()
+intersphinx_disabled_reftypes = ["*"]  # only explicit domain references, never std:doc
+
+# Every Python block of the guide runs during the build (snippets.py); a failing block
+# or an output the run does not print is a warning, an error under -W. Off with
+# ``-D mt_run_snippets=0`` for a quick local build.
+mt_run_snippets = True
 
 # Types in numpydoc fields ("callable(source_input, size, rng)") become cross-references
 # word by word; a word that names attributes of several classes ("size") is ambiguous and
@@ -120,8 +136,23 @@ def _resolve_own_reference(app: Any, env: Any, node: Any, contnode: Any) -> Any:
     return None
 
 
+def _run_snippets(app: Any) -> None:
+    from sphinx.util import logging
+    from snippets import pages, run_page
+
+    if not app.config.mt_run_snippets or str(app.config.mt_run_snippets) == "0":
+        return
+    logger = logging.getLogger(__name__)
+    for page in pages():
+        run = run_page(page)
+        for line, message in run.problems:
+            logger.warning(message, location=f"{page}:{line}", type="mt", subtype="snippet")
+
+
 def setup(app: Any) -> None:
     from api_pages import write_strategies_page
 
     write_strategies_page(Path(__file__).resolve().parent / "api")
+    app.add_config_value("mt_run_snippets", True, "env")
+    app.connect("builder-inited", _run_snippets)
     app.connect("missing-reference", _resolve_own_reference)

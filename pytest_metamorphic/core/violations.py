@@ -22,6 +22,8 @@ from pytest_metamorphic.core.stats import (
 
 __all__ = ["ViolationRecord"]
 
+_MAX_EXPLAINED = 3  # unmatched elements explained one per line; the rest counted
+
 
 @dataclass(frozen=True)
 class ViolationRecord:
@@ -128,8 +130,11 @@ def _violation_error(record: ViolationRecord, saved: str | None) -> MetamorphicV
         lines.append(f"  {record.reduction_note}")
     if item.params:
         lines.append(f"  transform parameters: {_short_params(item.params)}")
-    # One line per unmatched element (a subset check may list several).
-    lines.extend(f"  {part}" for part in re.split(r"; (?=element #)", verdict.explanation))
+    # One line per unmatched element (a subset check may list several), the first few.
+    parts = re.split(r"; (?=element #)", verdict.explanation)
+    lines.extend(f"  {part}" for part in parts[:_MAX_EXPLAINED])
+    if len(parts) > _MAX_EXPLAINED:
+        lines.append(f"  ... and {len(parts) - _MAX_EXPLAINED} more element(s) without a match")
     if reduction is not None and record.verdict.explanation != verdict.explanation:
         lines.append(f"  with all {reduction.original_size} elements: {record.verdict.explanation}")
     lines.extend(
