@@ -122,15 +122,20 @@ def module_source(page: Path, page_blocks: list[Block]) -> str:
     parts = [f"DATA = {str(data_folder())!r}\nPYTHON = {sys.executable!r}\nROOT = {str(ROOT)!r}"]
     setup = SETUP / f"{page.stem}.py"
     if setup.exists():
-        parts.append(f"# --- {setup.relative_to(ROOT)}\n" + setup.read_text(encoding="utf-8"))
+        parts.append(f"# --- {_shown(setup)}\n" + setup.read_text(encoding="utf-8"))
     replace = substitutions(page)
     for block in page_blocks:
         if block.language == "python" and not block.mark.startswith("skip"):
             code = block.code
             for old, new in replace.items():
                 code = code.replace(old, new)
-            parts.append(f"# --- {page.relative_to(ROOT)}:{block.line}\n" + code)
+            parts.append(f"# --- {_shown(page)}:{block.line}\n" + code)
     return "\n\n".join(parts) + "\n"
+
+
+def _shown(path: Path) -> Path:
+    """A path as printed: relative to the repository where it lies inside it."""
+    return path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
 
 
 def normalized(text: str) -> str:
@@ -221,11 +226,11 @@ def main(argv: list[str]) -> int:
         run = run_page(page)
         if not run.ran:
             continue
-        print(f"== {page.relative_to(ROOT)}: {run.ran} block(s)")
+        print(f"== {_shown(page)}: {run.ran} block(s)")
         print(run.output)
         for line, message in run.problems:
             failed += 1
-            print(f"{page.relative_to(ROOT)}:{line}: {message}")
+            print(f"{_shown(page)}:{line}: {message}")
     return 1 if failed else 0
 
 

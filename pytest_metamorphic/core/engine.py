@@ -183,12 +183,14 @@ class _Runner:
         __tracebackhide__ = True
         new = self._new_case
         reruns = recorder.reruns if recorder and not new else None
-        source_output = self._run(case.source, fixtures, "the source input", "source", None)
-        if recorder and new:
-            recorder.source_calls += 1
-        if reruns:
-            reruns.sources += 1
-            reruns.sut_calls += 1
+        try:
+            source_output = self._run(case.source, fixtures, "the source input", "source", None)
+        finally:  # a call that crashed is a call too
+            if recorder and new:
+                recorder.source_calls += 1
+            if reruns:
+                reruns.sources += 1
+                reruns.sut_calls += 1
         for mr in self.mrs:
             stats = (recorder.relation(mr.name) if new else reruns) if recorder else None
             if stats and new:
@@ -372,11 +374,13 @@ class _Runner:
             enabled = recorder.check_determinism if recorder else True
         if not enabled:
             return
-        again = self._run(
-            case.source, fixtures, "the source input (re-run)", "source", None, fresh=True
-        )
-        if stats:
-            stats.sut_calls += 1
+        try:
+            again = self._run(
+                case.source, fixtures, "the source input (re-run)", "source", None, fresh=True
+            )
+        finally:
+            if stats:
+                stats.sut_calls += 1
         difference = first_difference(source_output, again)
         if difference is not None:
             if stats:

@@ -127,6 +127,37 @@ def test_div(x):
         ]
     )
     result.stdout.no_fnmatch_line("*MetamorphicViolation*")
+    # The user's code first: the system's own line (the cause), then the test's def line;
+    # no frame of the plugin, and the crashing source calls are counted.
+    text = result.stdout.str()
+    assert "return 10 // x" in text and ">   def test_div(x):" in text
+    assert "pytest_metamorphic/core" not in text
+    assert "call_with_timeout" not in text
+    # The crashing call is a call: the (source) row counts it, beside its crash.
+    (row,) = [line.split() for line in result.stdout.lines if "(source)" in line]
+    assert row[0] == "test_mt.py::test_div" and int(row[2]) >= 1 and row[3] == "1"
+
+
+def test_the_footer_adds_up(pytester: pytest.Pytester) -> None:
+    # Source runs, follow-up runs, determinism re-checks, reductions and Hypothesis's
+    # re-runs add up to the total; the table's column is the relation's own calls.
+    _write(
+        pytester,
+        """
+@settings(database=None, derandomize=True)
+@metamorphic(source=st.lists(st.integers(0, 3), max_size=6),
+             followup=lambda xs: st.just(xs + [0]), relation=relations.cardinality("<"))
+def test_grows(xs):
+    return sorted(set(xs)) if len(xs) > 2 else sorted(xs)
+""",
+    )
+    result = pytester.runpytest("--mt-no-artifacts")
+    result.assert_outcomes(failed=1)
+    (line,) = [l for l in result.stdout.lines if l.startswith("1 metamorphic test(s), ")]
+    total = int(line.split(", ")[1].split()[0])
+    parts = [int(part.split()[0]) for part in line.split(": ", 1)[1].split(" + ")]
+    assert sum(parts) == total and len(parts) >= 4, line
+    assert "reducing violations" not in line or "re-running failing cases" in line
 
 
 def test_crash_on_followup_names_relation_and_index(pytester: pytest.Pytester) -> None:

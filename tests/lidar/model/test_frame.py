@@ -84,3 +84,10 @@ def test_repr_is_compact():
         "Frame(kitti/000001.bin#1; 10 points; 2 car, 1 pedestrian; roi=ROI; pose)"
     )
     assert repr(Frame(CLOUD)) == "Frame(<memory>#0; 10 points)"
+
+
+def test_hypothesis_prints_a_frame_as_its_repr_not_field_by_field():
+    from hypothesis.vendor.pretty import pretty
+
+    frame = Frame(CLOUD, boxes=(CAR,), source="kitti/000001.bin", index=1)
+    assert pretty(frame) == repr(frame) == "Frame(kitti/000001.bin#1; 10 points; 1 car)"
