@@ -56,7 +56,8 @@ CHROMIUM_FLAGS = [
 
 # Run in the page: what reaches past the article, what is clipped, what scrolls.
 _PROBE = """() => {
-  const article = document.querySelector('[role="main"]') || document.querySelector('article') || document.body;
+  const article = document.querySelector('[role="main"]') ||
+      document.querySelector('article') || document.body;
   // furo draws a table's wrapper a few pixels wider than the column (its border)
   const edge = article.getBoundingClientRect().right + 8;
   const found = {overflowing: [], clipped: [], scrolling: [], broken_images: []};

@@ -137,8 +137,8 @@ def _resolve_own_reference(app: Any, env: Any, node: Any, contnode: Any) -> Any:
 
 
 def _run_snippets(app: Any) -> None:
-    from sphinx.util import logging
     from snippets import pages, run_page
+    from sphinx.util import logging
 
     if not app.config.mt_run_snippets or str(app.config.mt_run_snippets) == "0":
         return

@@ -104,7 +104,9 @@ def substitutions(page: Path) -> dict[str, str]:
             isinstance(target, ast.Name) and target.id == "SUBSTITUTE" for target in node.targets
         ):
             namespace: dict[str, Any] = {
-                "DATA": str(data_folder()), "PYTHON": sys.executable, "ROOT": str(ROOT)
+                "DATA": str(data_folder()),
+                "PYTHON": sys.executable,
+                "ROOT": str(ROOT),
             }
             value = eval(compile(ast.Expression(node.value), str(setup), "eval"), namespace)
             return {str(key): str(item) for key, item in value.items()}

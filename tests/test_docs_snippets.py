@@ -13,7 +13,7 @@ sys.path.insert(0, str(ROOT / "docs"))
 
 import snippets  # noqa: E402
 
-PAGE = '''# A page
+PAGE = """# A page
 
 ```python
 from hypothesis import strategies as st
@@ -34,7 +34,7 @@ raise SystemExit("never run")
 ```text
 test_doc_page.py::test_sort  equal  100 ...
 ```
-'''
+"""
 
 
 def _page(tmp_path: Path, body: str) -> Path:
@@ -78,6 +78,8 @@ def test_a_page_runs_as_a_test_module(tmp_path: Path, body: str, problem: str | 
 
 def test_a_page_that_shows_a_failure_must_fail(tmp_path: Path) -> None:
     page = _page(tmp_path, "sorted(xs)")
-    page.write_text(page.read_text().replace("```python\nfrom", "<!-- snippet: fails -->\n```python\nfrom", 1))
+    page.write_text(
+        page.read_text().replace("```python\nfrom", "<!-- snippet: fails -->\n```python\nfrom", 1)
+    )
     messages = [message for _, message in snippets.run_page(page).problems]
     assert messages == ["the page shows a failing test, but none failed"]

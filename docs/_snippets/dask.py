@@ -11,11 +11,11 @@ if shutil.which("openssl") is None:
     pytest.skip("openssl is not installed", allow_module_level=True)
 pytest.importorskip("distributed")
 
-from distributed import LocalCluster  # noqa: E402
-from distributed.security import Security as _Security  # noqa: E402
+from distributed import LocalCluster
+from distributed.security import Security as _Security
 
-from pytest_metamorphic.lidar.campaign import mr1_campaign  # noqa: E402
-from pytest_metamorphic.lidar.systems.perception import ReferencePerception  # noqa: E402
+from pytest_metamorphic.lidar.campaign import mr1_campaign
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
 
 SUBSTITUTE = {'"tls://A:8786"': "SCHEDULER"}
 

@@ -3,6 +3,7 @@ pass, a stack; the recording, the detector program (a test helper) and the serve
 ROOT are defined by docs/snippets.py before this file."""
 
 import os
+
 import numpy as np
 import pytest
 
@@ -34,7 +35,9 @@ def stack_on_points(points, name):
 def model_forward(points):
     # OpenPCDet's output for one frame: a car 10 m ahead, a pedestrian 6 m left.
     boxes = np.array([[10.0, 0.0, -0.8, 4.2, 1.8, 1.5, 0.1], [3.0, 6.0, -0.9, 0.6, 0.6, 1.7, 0.0]])
-    return [{"pred_boxes": boxes, "pred_scores": np.array([0.9, 0.8]), "pred_labels": np.array([1, 2])}]
+    return [
+        {"pred_boxes": boxes, "pred_scores": np.array([0.9, 0.8]), "pred_labels": np.array([1, 2])}
+    ]
 
 
 class _Instances:
@@ -48,7 +51,8 @@ class _Result:
 
 
 class _Model:
-    dataset_meta = {"classes": ["Car", "Pedestrian", "Cyclist"]}
+    def __init__(self):
+        self.dataset_meta = {"classes": ["Car", "Pedestrian", "Cyclist"]}
 
 
 model = _Model()

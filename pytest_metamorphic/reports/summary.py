@@ -114,7 +114,9 @@ class SessionSummary:
             ),
         }
         total = sum(test.sut_calls for test in tests)
-        shown = [f"{count} {what}" for what, count in parts.items() if count or what.startswith("on ")]
+        shown = [
+            f"{count} {what}" for what, count in parts.items() if count or what.startswith("on ")
+        ]
         return f"{len(tests)} metamorphic test(s), {total} SUT calls: " + " + ".join(shown)
 
     def format_table(self) -> list[str]:

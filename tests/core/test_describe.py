@@ -33,7 +33,9 @@ def test_outputs_of_boxes_show_only_what_differs_rounded() -> None:
     source = [*shared, _box(5.04321, "pedestrian")]
     followup = [*shared, _box(30.0), _box(31.0)]
     lines = describe_outputs(source, followup)
-    assert lines[0] == "outputs: 11 element(s) in the source, 12 in the follow-up, 10 described alike"
+    assert (
+        lines[0] == "outputs: 11 element(s) in the source, 12 in the follow-up, 10 described alike"
+    )
     assert lines[1] == "  only in the source (1): pedestrian at (5.0, 1.0)"
     assert lines[2] == "  only in the follow-up (2): car at (30.0, 1.0); car at (31.0, 1.0)"
     assert not any("10.0, 1.0" in line for line in lines)  # shared boxes are counted, not listed

@@ -104,7 +104,9 @@ def test_append_grows(xs):
         ]
     )
     # The traceback names the user's test (its def line), not the plugin's wrapper.
-    result.stdout.fnmatch_lines(["*>   def test_append_grows(xs):", "test_mt.py:14: MetamorphicViolation"])
+    result.stdout.fnmatch_lines(
+        ["*>   def test_append_grows(xs):", "test_mt.py:14: MetamorphicViolation"]
+    )
     assert "core/engine.py" not in result.stdout.str()
 
 
@@ -153,7 +155,7 @@ def test_grows(xs):
     )
     result = pytester.runpytest("--mt-no-artifacts")
     result.assert_outcomes(failed=1)
-    (line,) = [l for l in result.stdout.lines if l.startswith("1 metamorphic test(s), ")]
+    (line,) = [x for x in result.stdout.lines if x.startswith("1 metamorphic test(s), ")]
     total = int(line.split(", ")[1].split()[0])
     parts = [int(part.split()[0]) for part in line.split(": ", 1)[1].split(" + ")]
     assert sum(parts) == total and len(parts) >= 4, line

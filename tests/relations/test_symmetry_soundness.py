@@ -81,5 +81,5 @@ def test_a_lost_moved_obstacle_says_where_its_points_went_and_how_far_off_it_is(
     assert not verdict.holds
     text = verdict.explanation
     assert "points:" in text and " in the car at " in text  # how its points were grouped
-    assert "length +0.00 m, width +0.00 m, heading 4.0 deg" in text  # same box, turned
+    assert "length +0.00 m, width +0.00 m, height +0.00 m, heading 4.0 deg" in text  # turned
     assert text.endswith("any difference is the detector's)")

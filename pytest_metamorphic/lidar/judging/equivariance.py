@@ -193,7 +193,8 @@ class MovedObstacles(Relation):
             parts.append(
                 f"nearest: {near.describe()}, centre {moved.center_distance(near):.2f} m off, "
                 f"length {near.size[0] - moved.size[0]:+.2f} m, "
-                f"width {near.size[1] - moved.size[1]:+.2f} m, heading {turned:.1f} deg"
+                f"width {near.size[1] - moved.size[1]:+.2f} m, "
+                f"height {near.size[2] - moved.size[2]:+.2f} m, heading {turned:.1f} deg"
             )
         return f" ({'; '.join(parts)})" if parts else ""
 

@@ -3,6 +3,7 @@ library file, re-cast into a sweep of another sensor."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,15 @@ def test_a_library_round_trips_every_template(tmp_path: Path) -> None:
     for a, b in zip(templates, loaded, strict=True):
         assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
         assert (a.label, a.size, a.view, a.range) == (b.label, b.size, b.view, b.range)
+
+
+def test_messages_name_a_templates_file_not_the_folder_it_lies_in() -> None:
+    templates = object_templates([labelled_kitti(1)])
+    assert "/" in templates[0].source  # the path on this machine, kept in the library
+    assert templates[0].origin.startswith("000001.bin#") and "/" not in templates[0].origin
+    assert templates[0].origin in templates[0].describe() and "/" not in templates[0].describe()
+    bag = dataclasses.replace(templates[0], source="/home/me/drive.bag [/points_raw #3]#0")
+    assert bag.origin == "drive.bag [/points_raw #3]#0"
 
 
 def test_a_bad_library_is_named(tmp_path: Path) -> None:

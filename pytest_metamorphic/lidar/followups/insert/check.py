@@ -77,7 +77,7 @@ class InsertedDetected(Relation):
         if share >= self.min_detected:
             return Verdict(True, self.name, details=details)
         template = insertion.template
-        origin = "" if template is None else f", a labelled {template.label} from {template.source}"
+        origin = "" if template is None else f", a labelled {template.label} from {template.origin}"
         return Verdict(
             False,
             self.name,

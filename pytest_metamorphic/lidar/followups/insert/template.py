@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -132,9 +133,16 @@ class ObjectTemplate:
         m = len(self.faces)
         return SceneMesh(world, self.faces, np.zeros(m, np.int32), np.zeros(m), ((0, m),))
 
+    @property
+    def origin(self) -> str:
+        """Where it was cut from, for messages: the file's name, not the folder it lies in on
+        the machine that made it (``000001.bin #3``, ``drive.bag [/points #0]``)."""
+        path, bracket, rest = str(self.source).partition(" [")
+        return Path(path).name + bracket + rest
+
     def describe(self) -> str:
         return (
-            f"{self.label} seen at {self.range:.1f} m ({len(self.vertices)} returns, {self.source})"
+            f"{self.label} seen at {self.range:.1f} m ({len(self.vertices)} returns, {self.origin})"
         )
 
 
