@@ -73,6 +73,7 @@ def test_the_fault_shows_in_every_setting_and_the_correct_controllers_stay_clean
         sensitivity_campaign(shared_data, settings=[])
 
 
+@pytest.mark.slow  # 23 s; the campaign itself is tested above, this is its command line
 def test_the_command_line_takes_the_car_and_runs_the_sensitivity(
     shared_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -51,6 +51,7 @@ def test_dbscan_ties_are_the_same_obstacle_under_turns_and_the_mirror() -> None:
     assert _violations(TIES) == []
 
 
+@pytest.mark.slow  # 10 s: why the tolerance is what it is, not whether it holds
 def test_the_old_centimetre_tolerance_called_dbscan_ties_violations() -> None:
     # 2 cm, 2 cm, 1 degree: a pedestrian 31 m away on sweep 2 loses one border point to
     # its neighbour when the sweep is turned by 180 or 270 degrees (17 -> 16 points,
