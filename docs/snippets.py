@@ -16,6 +16,9 @@ two blocks elsewhere (a detector's run on another machine). The setup file's
 ``SUBSTITUTE`` maps strings of the page to what runs here (a user's ``recordings/*.pcd``
 to a recording of the shared data).
 
+An output block after ``<!-- output of: pytest examples/... -->`` shows what that command
+prints (:func:`command_outputs`, run by a slow test: a whole campaign takes a minute).
+
 An output block is a ``text`` block after the comment ``<!-- output -->``: each of its
 lines, except ``...``, must appear in the run's output, in order (``...`` within a line
 stands for any text), once numbers of seconds, the run's temporary folder and the width of
@@ -29,6 +32,7 @@ from __future__ import annotations
 import ast
 import os
 import re
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -77,7 +81,10 @@ def blocks(page: Path) -> list[Block]:
         fence = _FENCE.match(text)
         if comment:
             kind, rest = comment.groups()
-            mark = "output" if kind == "output" else rest
+            if kind == "output":
+                mark = f"output {rest}" if rest.startswith("of:") else "output"
+            else:
+                mark = rest
         elif fence:
             end = index + 1
             while end < len(lines) and lines[end].rstrip() != fence.group(1):
@@ -214,6 +221,29 @@ def run_page(page: Path, *, python: str = sys.executable) -> PageRun:
                     (block.line, "output shown that the run did not print: " + missing[0])
                 )
     return result
+
+
+def command_outputs(page: Path) -> list[tuple[Block, list[str]]]:
+    """Output blocks marked ``<!-- output of: pytest ... -->`` and what their command's
+    run did not print (an empty list: all of it). The command runs from the repository's
+    root with ``python -m``, its campaign logs and artifacts in a temporary folder. Slower
+    than a page's snippets (a whole campaign), so run by a slow test, not by the build."""
+    checked = []
+    for block in blocks(page):
+        if not block.mark.startswith("output of:"):
+            continue
+        words = shlex.split(block.mark.removeprefix("output of:"))
+        with tempfile.TemporaryDirectory(prefix="mt-snippets-") as folder:
+            command = [sys.executable, "-m", *words, "-p", "no:cacheprovider"]
+            if words[0] == "pytest":
+                command += ["--mt-campaign-dir", f"{folder}/c", "--mt-artifacts", f"{folder}/a"]
+            environment = {**os.environ, "COLUMNS": "200"}
+            run = subprocess.run(
+                command, cwd=ROOT, capture_output=True, text=True, timeout=TIMEOUT,
+                env=environment,
+            )  # fmt: skip
+        checked.append((block, missing_lines(block.code, run.stdout + run.stderr)))
+    return checked
 
 
 def pages() -> list[Path]:

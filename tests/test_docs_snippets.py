@@ -83,3 +83,14 @@ def test_a_page_that_shows_a_failure_must_fail(tmp_path: Path) -> None:
     )
     messages = [message for _, message in snippets.run_page(page).problems]
     assert messages == ["the page shows a failing test, but none failed"]
+
+
+@pytest.mark.slow
+def test_the_readmes_campaign_output_is_a_real_runs() -> None:
+    # The Quickstart's main job, run as the README says (about a minute): its table and
+    # gate are printed as shown.
+    checked = snippets.command_outputs(ROOT / "README.md")
+    assert len(checked) == 1
+    ((block, missing),) = checked
+    assert block.mark == "output of: pytest examples/test_paper_campaign.py --mt-campaign"
+    assert missing == []
