@@ -196,7 +196,10 @@ def run_page(page: Path, *, python: str = sys.executable) -> PageRun:
     with tempfile.TemporaryDirectory(prefix="mt-snippets-") as folder:
         module = Path(folder) / f"test_doc_{page.stem.replace('-', '_')}.py"
         module.write_text(module_source(page, page_blocks), encoding="utf-8")
+        # A fixed seed: the build is reproducible (CI's profile is not loaded in the
+        # temporary folder); a reader's own run searches afresh.
         command = [python, "-m", "pytest", str(module), "-p", "no:cacheprovider", "-q"]
+        command += ["--hypothesis-seed=0"]
         command += ["--rootdir", folder, "--mt-artifacts", str(Path(folder) / "mt-artifacts")]
         environment = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "200"}
         try:
