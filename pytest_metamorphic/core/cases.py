@@ -15,7 +15,7 @@ from typing import Any
 from hypothesis import strategies as st
 from hypothesis.strategies import SearchStrategy
 
-from pytest_metamorphic.core.comparison import describe_value
+from pytest_metamorphic.core.comparison import describe_params, describe_value
 from pytest_metamorphic.core.errors import (
     InvalidArgument,
 )
@@ -64,11 +64,14 @@ class Followup:
         # Hypothesis prints a failing case with this: a follow-up reads as its transform
         # parameters (the noise points, an angle), not as the strategy calls that drew it
         # (``make(expand([0, 0, ...]))``) nor as a whole point cloud.
-        if self.skipped is not None or not self.params:
-            printer.pretty(self.input) if self.skipped is None else printer.text(repr(self))
-            return
-        params = ", ".join(f"{key}={describe_value(value)}" for key, value in self.params.items())
-        printer.text(f"Followup({describe_value(self.input)}, params={{{params}}})")
+        if self.skipped is not None:
+            printer.text(repr(self))
+        elif not self.params:
+            printer.pretty(self.input)
+        else:
+            printer.text(
+                f"Followup({describe_value(self.input)}, params={describe_params(self.params)})"
+            )
 
 
 @dataclass(frozen=True)

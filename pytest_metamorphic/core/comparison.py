@@ -20,6 +20,7 @@ from typing import Any
 __all__ = [
     "deep_equal",
     "describe_outputs",
+    "describe_params",
     "describe_value",
     "first_difference",
     "value_digest",
@@ -50,6 +51,11 @@ def describe_value(value: Any) -> str:
             return f"{len(value)} element(s): " + "; ".join(map(str, parts)) + tail
     text = repr(value)
     return text if len(text) <= _MAX_REPR else text[: _MAX_REPR - 3] + "..."
+
+
+def describe_params(params: Mapping[str, Any]) -> str:
+    """Transform parameters as messages and failing cases show them: ``{n=1, angle=90.0}``."""
+    return "{" + ", ".join(f"{key}={describe_value(value)}" for key, value in params.items()) + "}"
 
 
 def describe_outputs(source: Any, followup: Any) -> list[str]:

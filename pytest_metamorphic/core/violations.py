@@ -10,7 +10,7 @@ from typing import Any
 from hypothesis.errors import HypothesisException
 
 from pytest_metamorphic.core.cases import Followup
-from pytest_metamorphic.core.comparison import describe_outputs, describe_value
+from pytest_metamorphic.core.comparison import describe_outputs, describe_params
 from pytest_metamorphic.core.errors import (
     MetamorphicViolation,
 )
@@ -129,7 +129,7 @@ def _violation_error(record: ViolationRecord, saved: str | None) -> MetamorphicV
     elif record.reduction_note:
         lines.append(f"  {record.reduction_note}")
     if item.params:
-        lines.append(f"  transform parameters: {_short_params(item.params)}")
+        lines.append(f"  transform parameters: {describe_params(item.params)}")
     # One line per unmatched element (a subset check may list several), the first few.
     parts = re.split(r"; (?=element #)", verdict.explanation)
     lines.extend(f"  {part}" for part in parts[:_MAX_EXPLAINED])
@@ -148,7 +148,3 @@ def _violation_error(record: ViolationRecord, saved: str | None) -> MetamorphicV
     error.followup_output = record.minimal_output
     error.record = record
     return error
-
-
-def _short_params(params: Mapping[str, Any]) -> str:
-    return "{" + ", ".join(f"{key}={describe_value(value)}" for key, value in params.items()) + "}"
