@@ -28,6 +28,7 @@ from pytest_metamorphic.lidar.followups.insert import (
     object_templates,
 )
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.judging.found import ClassRule, check_class_rule
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box
@@ -94,6 +95,7 @@ def edit_campaign(
     clearance: float = 5.0,
     min_points: int = 30,
     min_detected: float = 0.5,
+    classes: ClassRule = "own_or_unknown",
     matcher: Matcher | None = None,
     scope: ScopeLike = "roi",
 ) -> Campaign:
@@ -111,20 +113,22 @@ def edit_campaign(
         place or no object edits nothing and holds.
     name, frames, sources, followups, seed, scope
         As for :func:`mr1_campaign`.
-    clearance, min_points, min_detected, matcher
+    clearance, min_points, min_detected, classes, matcher
         As for :func:`~pytest_metamorphic.relations.lidar.object_insertion`.
     """
     if edit not in _EDIT_FOLLOWUPS:
         raise InvalidArgument(f"edit={edit!r} must be one of {sorted(_EDIT_FOLLOWUPS)}")
     levels = _severities(severities, EDIT_SEVERITIES[edit], 1000)
+    check_class_rule(classes)
 
     def relation(chosen: ObstacleScope) -> Relation:
         kept = OthersKept(clearance=clearance, matcher=matcher, scope=chosen)
         if edit == "removal":
             return kept
-        return (
-            InsertedDetected(min_points=min_points, min_detected=min_detected, scope=chosen) & kept
+        found = InsertedDetected(
+            min_points=min_points, min_detected=min_detected, classes=classes, scope=chosen
         )
+        return found & kept
 
     return scoped_campaign(
         system,

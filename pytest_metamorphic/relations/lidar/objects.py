@@ -15,6 +15,7 @@ from pytest_metamorphic.lidar.followups.insert import (
     ObjectTemplate,
     object_templates,
 )
+from pytest_metamorphic.lidar.judging.found import ClassRule
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
 from pytest_metamorphic.relations.lidar._common import _PROBE, _frame, lidar_relation
@@ -62,6 +63,7 @@ def object_insertion(
     clearance: float = 5.0,
     min_points: int = 30,
     min_detected: float = 0.5,
+    classes: ClassRule = "own_or_unknown",
     matcher: Matcher | None = None,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
@@ -87,7 +89,8 @@ def object_insertion(
 
     The check is :class:`~pytest_metamorphic.lidar.followups.insert.InsertedDetected` (an inserted
     object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
-    obstacles, any label) and :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` (judged
+    obstacles of its class, or ``"unknown"``: ``classes``, under either tolerance profile;
+    an inserted pedestrian reported as a car is a violation) and :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` (judged
     source obstacles >= ``clearance`` metres from it and not behind it keep their match).
 
     Precondition: a detector that finds an unoccluded object of >= 30 returns on free
@@ -100,7 +103,9 @@ def object_insertion(
     could not see around the car: a real limit of that ground model, which a search of
     far placements finds.
     """
-    check = InsertedDetected(min_points=min_points, min_detected=min_detected, scope=scope)
+    check = InsertedDetected(
+        min_points=min_points, min_detected=min_detected, classes=classes, scope=scope
+    )
     relation = check & OthersKept(clearance=clearance, matcher=matcher, scope=scope)
     inserted_objects(_PROBE, objects=objects, min_returns=min_points, layout=layout)
 

@@ -223,7 +223,7 @@ def test_checks_name_what_they_need() -> None:
 def test_a_short_range_gate_misses_a_labelled_car_put_back_at_56_m() -> None:
     """``short_range_gate`` drops everything beyond 40 m: no relation comparing runs sees
     it (nothing there is ever reported), an inserted object does. KITTI sweep 1's labelled
-    car, seen at 70 m, put on free ground at 56 m with 114 returns."""
+    car, seen at 70 m, put on free ground at 56 m with 132 returns."""
     frame = FrameCatalog(
         conftest.shared_data_path("kitti_openpcdet", "training"), roi=kitti_label_region()
     ).load(1)
@@ -233,7 +233,7 @@ def test_a_short_range_gate_misses_a_labelled_car_put_back_at_56_m() -> None:
     faulty = mutant("short_range_gate")
     context = CheckContext(frame, followup, insertion.params(), 0)
     verdict = object_insertion().relation.check(faulty(frame), faulty(followup), context)
-    assert not verdict.holds and "(114 returns, a labelled car from " in verdict.explanation
+    assert not verdict.holds and "(132 returns, a labelled car from " in verdict.explanation
     assert ") is not detected" in verdict.explanation
     reference = ReferencePerception()
     assert object_insertion().relation.check(reference(frame), reference(followup), context)

@@ -8,18 +8,27 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.followups.faults import _fraction
 from pytest_metamorphic.lidar.followups.insert.insertion import InsertObject
+from pytest_metamorphic.lidar.judging.found import (
+    ClassRule,
+    accepted_labels,
+    check_class_rule,
+    found_as,
+)
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.lidar.model.obstacles import as_boxes, share_inside
+from pytest_metamorphic.lidar.model.obstacles import as_boxes
 
 __all__ = ["InsertedDetected"]
 
 
 class InsertedDetected(Relation):
-    """The inserted object is detected: when it has at least ``min_points`` returns that
-    span at least ``min_height_share`` of the height all its cast returns spanned, and
-    ``scope`` judges it, at least ``min_detected`` of its returns lie in follow-up
-    obstacles (boxes grown by 10 cm, any label: a car seen from afar may come out as an
-    unknown object, and the check is about not missing it).
+    """The inserted object is detected with its class: when it has at least
+    ``min_points`` returns that span at least ``min_height_share`` of the height all its
+    cast returns spanned, and ``scope`` judges it, at least ``min_detected`` of its
+    returns lie in follow-up obstacles (boxes grown by 10 cm) of its class or, by default,
+    ``"unknown"`` (``classes``, :data:`~pytest_metamorphic.lidar.judging.found.CLASS_RULES`:
+    a car seen from afar may come out as an unknown object, which is not missing it; a
+    pedestrian reported as a car is). The class is the template's: ground truth of the
+    recording it was cut from.
 
     The height condition matters when a violation is reduced to fewer returns: the 30
     lowest returns of a car 46 m away (a slice 0.3 m high, below any detector's minimum
@@ -33,6 +42,7 @@ class InsertedDetected(Relation):
         min_points: int = 30,
         min_detected: float = 0.5,
         min_height_share: float = 0.8,
+        classes: ClassRule = "own_or_unknown",
         scope: ScopeLike = "roi",
     ) -> None:
         if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
@@ -40,10 +50,16 @@ class InsertedDetected(Relation):
         self.min_points = min_points
         self.min_detected = _fraction(min_detected, "min_detected")
         self.min_height_share = _fraction(min_height_share, "min_height_share")
+        self.classes = check_class_rule(classes)
         self.scope: ObstacleScope = as_scope(scope)
+        held = {
+            "own": "obstacles of its class",
+            "own_or_unknown": "obstacles of its class or unknown",
+            "any": "obstacles",
+        }[self.classes]
         self.name = (
             f"inserted object detected (>= {min_points} returns: >= {min_detected:.0%} of "
-            f"them in obstacles; {self.scope.describe()})"
+            f"them in {held}; {self.scope.describe()})"
         )
 
     def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
@@ -72,16 +88,36 @@ class InsertedDetected(Relation):
                 "spanned: a slice of the object, not judged",
                 details,
             )
-        share = share_inside(insertion.points[:, :3], as_boxes(followup_output, "follow-up"))
-        details.update(judged=1, detected_share=round(share, 3))
-        if share >= self.min_detected:
+        boxes = as_boxes(followup_output, "follow-up")
+        accepted = accepted_labels(insertion.box.label, self.classes)
+        found = found_as(insertion.points[:, :3], boxes, accepted)
+        details.update(
+            judged=1,
+            detected_share=round(found.share, 3),
+            detected_as_share=round(found.share_as, 3),
+            found_as=found.main_label(),
+            classes=self.classes,
+        )
+        if found.share_as >= self.min_detected:
             return Verdict(True, self.name, details=details)
         template = insertion.template
         origin = "" if template is None else f", a labelled {template.label} from {template.origin}"
+        what = f"the inserted {insertion.box.describe()} ({returns} returns{origin})"
+        if found.share >= self.min_detected:
+            held = ", ".join(f"{label} {count}" for label, count in found.labels.most_common())
+            wrong = [label for label in found.labels if accepted and label not in accepted]
+            return Verdict(
+                False,
+                self.name,
+                f"{what} is found as a {wrong[0]}, not a {insertion.box.label}: "
+                f"{found.share_as:.0%} of its returns lie in obstacles of its class "
+                f"(returns held by: {held})",
+                details,
+            )
         return Verdict(
             False,
             self.name,
-            f"the inserted {insertion.box.describe()} ({returns} returns{origin}) is not "
-            f"detected: {share:.0%} of its returns lie in follow-up obstacles",
+            f"{what} is not detected: {found.share:.0%} of its returns lie in follow-up "
+            "obstacles",
             details,
         )

@@ -260,5 +260,7 @@ def _intensity(
     """Intensity of each new return: that of the template's nearest return."""
     if len(direction) == 0:
         return np.empty(0, dtype=np.float32)
-    _, nearest = cKDTree(mesh.vertices).query(direction * distance[:, None])
+    # The template's returns come first among the mesh's vertices (then their patches).
+    returns = mesh.vertices[: len(template.vertices)]
+    _, nearest = cKDTree(returns).query(direction * distance[:, None])
     return template.intensity[nearest]

@@ -10,6 +10,13 @@ object, so a footprint is often shorter or narrower than the real one (a car see
 behind is about 1.7 x 0.5 m). Classes are tried in the order car, cyclist, pedestrian;
 a class matches when any of its rules does; anything else is ``"unknown"``. Footprints
 narrower than 0.15 m are poles and posts, not people.
+
+A car seen from behind and a cyclist seen from the side have the same footprint and
+height (about 1.5 x 0.5 x 1.3 m); what tells them apart is the *crown*, how far the
+returns within 0.35 m of the object's top reach along its length: a car's roof edge and
+rear window 0.8-1.6 m, a rider's head and shoulders at most 0.5 m (measured on the KITTI
+sweeps and rendered streets). Without it, a cyclist whose returns happened to span 1.30
+instead of 1.31 m was a car (found by inserting a cyclist 22.5 m away).
 """
 
 from __future__ import annotations
@@ -22,7 +29,10 @@ from numpy.typing import NDArray
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.obstacles import Label
 
-__all__ = ["ClassRule", "ClassifierParams", "ObjectShape", "classify"]
+__all__ = ["CROWN_BAND", "ClassRule", "ClassifierParams", "ObjectShape", "classify"]
+
+CROWN_BAND = 0.35
+"""Metres below an object's top whose returns make its crown (see :class:`ObjectShape`)."""
 
 
 @dataclass(frozen=True)
@@ -31,7 +41,8 @@ class ClassRule:
 
     ``length`` and ``width`` are the box footprint (length >= width), ``height`` the
     vertical extent of the points, ``top`` and ``bottom`` the heights above the local
-    ground of the object's highest and lowest point.
+    ground of the object's highest and lowest point, ``crown`` how far the returns near
+    the top reach along the length (not checked for shapes without it).
     """
 
     length: tuple[float, float]
@@ -39,6 +50,7 @@ class ClassRule:
     top: tuple[float, float]
     height: tuple[float, float] = (0.0, 10.0)
     bottom: tuple[float, float] = (-1.0, 0.6)
+    crown: tuple[float, float] = (0.0, 100.0)
 
     def __post_init__(self) -> None:
         for item in fields(self):
@@ -52,19 +64,25 @@ class ClassRule:
         for item in fields(self):
             low, high = getattr(self, item.name)
             value = getattr(shape, item.name)
-            result &= (value >= low) & (value <= high)
+            if value is not None:
+                result &= (value >= low) & (value <= high)
         return result
 
 
 @dataclass(frozen=True)
 class ObjectShape:
-    """Shape features of ``k`` objects, each a (k,) float64 array in metres."""
+    """Shape features of ``k`` objects, each a (k,) float64 array in metres.
+
+    ``crown``: the extent along the box length of the returns within :data:`CROWN_BAND`
+    of the top (None: not measured, and no rule checks it).
+    """
 
     length: NDArray[np.float64]
     width: NDArray[np.float64]
     height: NDArray[np.float64]
     top: NDArray[np.float64]
     bottom: NDArray[np.float64]
+    crown: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)
@@ -75,8 +93,11 @@ class ClassifierParams:
         # Side or corner view. Thinner than 0.3 m is a wall or fence; vans reach 2.3 m.
         ClassRule(length=(2.2, 6.5), width=(0.3, 2.8), top=(0.9, 2.3)),
         # Seen from behind or in front: the car's width becomes the box length, the
-        # box is shallow, and the points span less height than a standing person.
-        ClassRule(length=(1.3, 2.2), width=(0.3, 2.2), top=(0.9, 2.0), height=(0.3, 1.3)),
+        # box is shallow, and the points span less height than a standing person; its
+        # roof edge spans most of that length (a cyclist's rider does not).
+        ClassRule(
+            length=(1.3, 2.2), width=(0.3, 2.2), top=(0.9, 2.0), height=(0.3, 1.3), crown=(0.6, 2.2)
+        ),
     )
     cyclist: tuple[ClassRule, ...] = (
         ClassRule(length=(1.2, 2.2), width=(0.15, 0.8), top=(1.2, 2.1), height=(0.8, 2.1)),

@@ -50,6 +50,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.systems.perception.classify import (
+    CROWN_BAND,
     ClassifierParams,
     ObjectShape,
     classify,
@@ -266,6 +267,7 @@ class ReferencePerception:
             height=np.array([shape.height for shape in shapes]),
             top=(top - ground)[kept].astype(np.float64),
             bottom=(bottom - ground)[kept].astype(np.float64),
+            crown=_crowns(cluster_points_, cluster_labels, shapes, top[kept]),
         )
         classes = self.classify(features)
         boxes = [
@@ -313,6 +315,26 @@ def sweep_and_roi(cloud: Any, roi: Any) -> tuple[NDArray[np.float32], Any]:
     if roi is not None and not callable(getattr(roi, "contains", None)):
         raise InvalidArgument(f"roi={roi!r} must have contains(xy, method=...) or be None")
     return points, roi
+
+
+def _crowns(
+    points: NDArray[np.float32],
+    labels: NDArray[np.intp],
+    shapes: list[MinBox],
+    top: NDArray[np.float32],
+) -> NDArray[np.float64]:
+    """(k,) float64: how far each object's returns within ``CROWN_BAND`` of its ``top``
+    reach along its box's length (``points`` (n, 3) with object ``labels`` 0..k-1)."""
+    count = len(shapes)
+    direction = np.array([shape.direction[:2] for shape in shapes], dtype=np.float64)
+    near_top = points[:, 2] >= top[labels] - CROWN_BAND
+    ids = labels[near_top]
+    along = np.einsum("ij,ij->i", points[near_top, :2].astype(np.float64), direction[ids])
+    low = np.full(count, np.inf)
+    high = np.full(count, -np.inf)
+    np.minimum.at(low, ids, along)
+    np.maximum.at(high, ids, along)
+    return np.maximum(high - low, 0.0)
 
 
 def _member_points(
