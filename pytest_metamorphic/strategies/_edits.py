@@ -26,14 +26,20 @@ from pytest_metamorphic.lidar.followups.insert import (
     free_placements,
     object_templates,
 )
-from pytest_metamorphic.lidar.judging.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.followups.insert.relocation import (
+    MOVE_KINDS,
+    Movable,
+    Move,
+    MoveKind,
+)
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.strategies._noise import _check_frame
 
-__all__ = ["inserted_objects", "removed_objects"]
+__all__ = ["inserted_objects", "relocated_objects", "removed_objects"]
 
 _Options = list[tuple[ObjectTemplate, list[Placement]]]
 # Free places per frame and options: the search reads the whole cloud once per frame.
@@ -137,6 +143,96 @@ def inserted_objects(
 
     # Places are searched when the first example is drawn, not when the strategy is made.
     return st.deferred(insertions)
+
+
+def relocated_objects(
+    frame: Any,
+    *,
+    kinds: Sequence[MoveKind] = MOVE_KINDS,
+    margin: float = 0.15,
+    min_returns: int = 30,
+    layout: BeamLayout | None = None,
+    scope: ScopeLike = "roi",
+) -> st.SearchStrategy[Followup]:
+    """The frame with one of its cars, pedestrians or cyclists moved
+    (:class:`~pytest_metamorphic.lidar.followups.insert.relocation.RelocateObject`): nearer or
+    farther along its bearing, around the sensor at the same range, or turned in place
+    (``kinds``), onto free ground judged by ``scope``, in clear view, re-cast with
+    ``layout``'s beams (default: the frame's sensor). The objects are
+    :func:`~pytest_metamorphic.lidar.followups.edit.removal_candidates` (labels, else the
+    reference pipeline's proposals) whose returns make a template of >= ``min_returns``.
+    Shrinks toward the nearest object, the first kind and the smallest move. Not
+    applicable (and reported so) when no object can move or the sensor is unknown."""
+    frame = _check_frame(frame)
+    if layout is not None and not isinstance(layout, BeamLayout):
+        raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None (the frame's)")
+    chosen_kinds = tuple(kinds)
+    if not chosen_kinds or any(kind not in MOVE_KINDS for kind in chosen_kinds):
+        raise InvalidArgument(f"kinds={kinds!r} must be a non-empty subset of {MOVE_KINDS}")
+    if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
+        raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
+    RemoveObject(Box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), margin)  # validates margin
+    chosen = as_scope(scope)
+
+    def moves() -> st.SearchStrategy[Followup]:
+        beams = layout if layout is not None else frame_sensor(frame).sensor
+        if not isinstance(beams, BeamLayout):
+            return st.just(Followup.not_applicable(frame, _no_beams(frame)))
+        key = ("relocate", chosen_kinds, margin, min_returns, chosen, id(beams))
+        cache = _MOVABLE.setdefault(frame, {})
+        if key not in cache:
+            cache[key] = _movables(frame, chosen_kinds, margin, min_returns, beams, chosen)
+        movables = cache[key]
+        if not movables:
+            return st.just(Followup.not_applicable(frame, _nothing_moves(frame, chosen)))
+
+        def move(item: Movable, step: Move) -> Followup:
+            relocation = item.relocate(step, layout=beams)
+            if relocation is None:  # listed as free: the same checks, so never
+                return Followup.not_applicable(frame, f"no free place {step.describe()}")
+            return Followup(relocation.apply(frame), params=relocation.params())
+
+        def pick(index: int) -> st.SearchStrategy[Followup]:
+            item, free = movables[index]
+            return st.sampled_from([k for k in chosen_kinds if k in free]).flatmap(
+                lambda kind: st.sampled_from(free[kind]).map(lambda m: move(item, m))
+            )
+
+        return st.integers(0, len(movables) - 1).flatmap(pick)
+
+    # Objects and their free moves are found when the first example is drawn.
+    return st.deferred(moves)
+
+
+# Movable objects per frame and options: finding their free moves reads the cloud per object.
+_MOVABLE: weakref.WeakKeyDictionary[
+    Frame, dict[tuple[Any, ...], list[tuple[Movable, dict[MoveKind, list[Move]]]]]
+] = weakref.WeakKeyDictionary()
+
+
+def _movables(
+    frame: Frame,
+    kinds: tuple[MoveKind, ...],
+    margin: float,
+    min_returns: int,
+    beams: BeamLayout,
+    scope: ObstacleScope,
+) -> list[tuple[Movable, dict[MoveKind, list[Move]]]]:
+    found = []
+    for box in removal_candidates(frame, scope=scope):
+        item = Movable.of(frame, box, margin=margin, min_returns=min_returns)
+        moves = {} if item is None else item.moves(layout=beams, scope=scope, kinds=kinds)
+        if item is not None and moves:
+            found.append((item, moves))
+    return found
+
+
+def _nothing_moves(frame: Frame, scope: ObstacleScope) -> str:
+    proposer = "labels" if frame.boxes else "the reference pipeline's proposals"
+    return (
+        f"no car, pedestrian or cyclist among {proposer} ({scope.describe()}) can move: none "
+        "has enough returns for a template, or no move leaves one on free ground in view"
+    )
 
 
 def _no_beams(frame: Frame) -> str:

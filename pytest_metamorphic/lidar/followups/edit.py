@@ -325,7 +325,7 @@ class OthersKept(Relation):
         return Verdict(False, self.name, "; ".join(lines), details)
 
 
-_EDIT_KEYS = ("remove_object", "insert_object")
+_EDIT_KEYS = ("remove_object", "insert_object", "relocate_object")
 _EDIT_API = ("region", "affects", "describe_edit")
 
 
@@ -338,7 +338,7 @@ def _edit(params: Mapping[str, Any], relation: str) -> Any:
                 return edit
             raise InvalidArgument(f"params[{key!r}]={edit!r} is not an object edit")
     raise InvalidArgument(
-        f"{relation} needs the follow-up's edit in params['remove_object'] or "
-        "params['insert_object'] (use object_removal(), object_insertion() or the edit's "
-        "params())"
+        f"{relation} needs the follow-up's edit in params['remove_object'], "
+        "params['insert_object'] or params['relocate_object'] (use object_removal(), "
+        "object_insertion(), object_relocation() or the edit's params())"
     )

@@ -46,6 +46,7 @@ def save_templates(path: str | os.PathLike[str], templates: Sequence[ObjectTempl
                 "range": template.range,
                 "bearing": template.bearing,
                 "source": template.source,
+                "spacing": [float(v) for v in template.spacing],
             }
         )
     arrays["index"] = np.frombuffer(
@@ -124,6 +125,7 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
         raise DataError(f"{where}: size must be 3 positive lengths", path=source)
     if not all(math.isfinite(v) for v in numbers) or numbers[1] <= 0:
         raise DataError(f"{where}: view, range and bearing must be finite, range > 0", path=source)
+    spacing = _spacing(entry.get("spacing"), where, source)
     return ObjectTemplate(
         label=label,
         size=size,
@@ -134,4 +136,20 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
         range=numbers[1],
         bearing=numbers[2],
         source=str(entry.get("source", "")),
+        **spacing,
     )
+
+
+def _spacing(value: object, where: str, source: Path) -> dict[str, tuple[float, float]]:
+    """The ``spacing`` keyword of a library entry ({} for libraries written before it)."""
+    if value is None:
+        return {}
+    try:
+        azimuth, elevation = (float(v) for v in value)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise DataError(f"{where}: spacing must be two angles in radians", path=source) from None
+    if not all(math.isfinite(v) and 0 < v < 0.2 for v in (azimuth, elevation)):
+        raise DataError(
+            f"{where}: spacing must be two angles in radians (0 < angle < 0.2)", path=source
+        )
+    return {"spacing": (azimuth, elevation)}

@@ -116,12 +116,13 @@ class ObjectTemplate:
         )
 
     def box_at(self, placement: Placement) -> Box:
-        """The template's box standing at ``placement``, turned so the same face is seen."""
+        """The template's box standing at ``placement``, turned so the same face is seen
+        (then by the placement's ``turn``)."""
         x, y = (
             placement.range * math.cos(placement.bearing),
             placement.range * math.sin(placement.bearing),
         )
-        yaw = math.remainder(placement.bearing + self.view, 2 * math.pi)
+        yaw = math.remainder(placement.bearing + self.view + placement.turn, 2 * math.pi)
         centre = (x, y, placement.ground_z + self.size[2] / 2)
         return Box(centre, self.size, yaw, self.label)
 
@@ -226,11 +227,13 @@ def _surface(
 @dataclass(frozen=True)
 class Placement:
     """Where a template goes: ``range`` metres from the sensor at ``bearing`` radians, its
-    underside at ``ground_z``."""
+    underside at ``ground_z``, turned ``turn`` radians about its own centre from the
+    heading that shows the sensor the face it saw (0: the same face)."""
 
     bearing: float
     range: float
     ground_z: float
+    turn: float = 0.0
 
 
 def object_templates(

@@ -1,0 +1,209 @@
+"""Whether a moved object is found where it went, as what it was."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.lidar.followups.faults import _fraction
+from pytest_metamorphic.lidar.followups.insert.relocation import RelocateObject
+from pytest_metamorphic.lidar.judging.found import (
+    ClassRule,
+    accepted_labels,
+    check_class_rule,
+    found_as,
+)
+from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, footprint_distances
+
+__all__ = ["RelocatedFound"]
+
+_ELONGATED = 2.2  # metres: boxes at least this long (both runs) have a heading to compare
+
+
+def _positive(value: object, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidArgument(f"{name}={value!r} must be a positive number")
+    if not (math.isfinite(value) and value > 0):
+        raise InvalidArgument(f"{name}={value!r} must be a positive number")
+    return float(value)
+
+
+class RelocatedFound(Relation):
+    """The moved object is found where it went, as what the system called it where it
+    stood.
+
+    The source obstacle that was the object is the one holding most of its returns (at
+    least half); a system that did not find it there, or an obstacle ``scope`` does not
+    judge, makes no claim to keep. When the moved object has at least ``min_points``
+    returns spanning at least ``min_height_share`` of the height its cast returns
+    spanned, at least ``min_detected`` of them must lie in follow-up obstacles of the
+    source obstacle's class (``classes``, by default also ``"unknown"``; a source
+    ``"unknown"`` accepts any class), and the obstacle holding most of them must stand
+    with its centre within ``center_tolerance`` metres of the footprint of the source
+    obstacle moved by the same motion, headed within ``yaw_tolerance`` degrees of it
+    (modulo 180) when both boxes are at least 2.2 m long (shorter boxes have no heading
+    to speak of). A turned object's class is not judged: turned, it shows the sensor
+    another outline (a cyclist turned toward it is as short as a pedestrian).
+
+    Sizes are not compared: the object is re-sampled at another range or angle, and a
+    box fitted to the returns of one face changes length with how many rows reach its far
+    end (see :func:`~pytest_metamorphic.relations.lidar.object_relocation`).
+    """
+
+    def __init__(
+        self,
+        *,
+        min_points: int = 30,
+        min_detected: float = 0.5,
+        min_height_share: float = 0.8,
+        classes: ClassRule = "own_or_unknown",
+        center_tolerance: float = 0.5,
+        yaw_tolerance: float = 20.0,
+        scope: ScopeLike = "roi",
+    ) -> None:
+        if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
+            raise InvalidArgument(f"min_points={min_points!r} must be a positive int")
+        self.min_points = min_points
+        self.min_detected = _fraction(min_detected, "min_detected")
+        self.min_height_share = _fraction(min_height_share, "min_height_share")
+        self.classes = check_class_rule(classes)
+        self.center_tolerance = _positive(center_tolerance, "center_tolerance")
+        self.yaw_tolerance = _positive(yaw_tolerance, "yaw_tolerance")
+        self.scope: ObstacleScope = as_scope(scope)
+        self.name = (
+            f"moved object found where it went (>= {min_points} returns: >= "
+            f"{min_detected:.0%} in obstacles of its class, centre within "
+            f"{center_tolerance:g} m of its moved footprint; {self.scope.describe()})"
+        )
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        relocation = context.params.get("relocate_object", ())
+        if relocation is None:
+            return Verdict(True, self.name, "no object to move", {"judged": 0})
+        if not isinstance(relocation, RelocateObject):
+            raise InvalidArgument(
+                f"{self.name} needs the follow-up's RelocateObject in "
+                "params['relocate_object'] (use object_relocation() or RelocateObject.params())"
+            )
+        source = as_boxes(source_output, "source")
+        details: dict[str, Any] = {"moved": relocation.describe_edit(), "judged": 0}
+        index = _holder(source, relocation.original)
+        if index is None:
+            return Verdict(
+                True, self.name, "the system did not find the object where it stood", details
+            )
+        before = source[index]
+        if not self.scope.judged([before], context.source_input)[0]:
+            return Verdict(True, self.name, "the object is not judged where it stood", details)
+        moved = relocation.insertion.points[:, :3]
+        if len(moved) < self.min_points or not self._tall_enough(relocation):
+            return Verdict(True, self.name, "too few returns where it went", details)
+        expected = relocation.expected(before)
+        boxes = as_boxes(followup_output, "follow-up")
+        # A turned object shows the sensor another outline (a cyclist turned toward it is
+        # as short as a pedestrian): its class is not judged, its place and heading are.
+        judged_class = before.label != "unknown" and relocation.move.kind != "turn"
+        accepted = accepted_labels(before.label, self.classes if judged_class else "any")
+        found = found_as(moved, boxes, accepted)
+        details.update(
+            judged=1,
+            source_obstacle=before.describe(),
+            expected=expected.describe(),
+            found_share=round(found.share, 3),
+            found_as_share=round(found.share_as, 3),
+            found_as=found.main_label(),
+            blamed=[index],
+        )
+        what = f"{before.describe()}, moved {relocation.move.describe()} ({len(moved)} returns)"
+        if found.share_as < self.min_detected:
+            if found.share >= self.min_detected:
+                wrong = [label for label in found.labels if accepted and label not in accepted]
+                return Verdict(
+                    False, self.name, f"{what} is found as a {wrong[0]}, not a {before.label}",
+                    details,
+                )  # fmt: skip
+            return Verdict(
+                False,
+                self.name,
+                f"{what} is not found: {found.share:.0%} of its returns lie in follow-up "
+                "obstacles",
+                details,
+            )
+        holder = _holder(boxes, moved, accepted=accepted, share=0.0)
+        assert holder is not None  # share_as > 0: an accepted box holds some of them
+        after = boxes[holder]
+        # A box fitted to the faces seen changes length with how many rows reach its far
+        # end, and its centre slides along it: the place is the expected footprint.
+        gap = _footprint_gap(after, expected)
+        details.update(
+            found=after.describe(),
+            center_gap=round(math.dist(after.center[:2], expected.center[:2]), 3),
+            outside_footprint=round(gap, 3),
+        )
+        if gap > self.center_tolerance:
+            return Verdict(
+                False,
+                self.name,
+                f"{what} is found {gap:.2f} m outside where it went: {after.describe()}, "
+                f"expected {expected.describe()} ({expected.size[0]:.1f} x "
+                f"{expected.size[1]:.1f} m)",
+                details,
+            )
+        turn = _heading_gap(after, expected)
+        if turn is not None:
+            details["heading_gap"] = round(turn, 1)
+            if turn > self.yaw_tolerance:
+                return Verdict(
+                    False,
+                    self.name,
+                    f"{what} is found headed {turn:.0f} degrees off: {after.describe()}, "
+                    f"expected heading {math.degrees(expected.yaw):.0f} degrees",
+                    details,
+                )
+        return Verdict(True, self.name, details=details)
+
+    def _tall_enough(self, relocation: RelocateObject) -> bool:
+        z = relocation.insertion.points[:, 2]
+        span = float(z.max() - z.min())
+        total = relocation.insertion.span
+        return not total or span >= self.min_height_share * total
+
+
+def _holder(
+    boxes: list[Box],
+    points: np.ndarray,
+    *,
+    accepted: frozenset[str] | None = None,
+    share: float = 0.5,
+) -> int | None:
+    """Index of the box (of an ``accepted`` label) holding most of ``points``, when it
+    holds at least ``share`` of them (and one)."""
+    best, count = None, 0
+    for i, box in enumerate(boxes):
+        if accepted is not None and box.label not in accepted:
+            continue
+        held = int(box.grown(0.1).contains(points).sum())
+        if held > count:
+            best, count = i, held
+    if best is None or count < share * len(points):
+        return None
+    return best
+
+
+def _footprint_gap(found: Box, expected: Box) -> float:
+    """Metres from ``found``'s centre to ``expected``'s footprint (0 inside it)."""
+    return float(footprint_distances(np.array([found.center[:2]]), [expected])[0])
+
+
+def _heading_gap(a: Box, b: Box) -> float | None:
+    """Degrees between the headings of two elongated boxes, modulo 180 (None: either is
+    shorter than 2.2 m)."""
+    if min(a.size[0], b.size[0]) < _ELONGATED:
+        return None
+    gap = abs(math.remainder(a.yaw - b.yaw, math.pi))
+    return math.degrees(gap)
