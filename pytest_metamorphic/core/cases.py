@@ -41,11 +41,18 @@ class Followup:
     insert, no laser to drop) yields :meth:`not_applicable` with the reason: the system is
     not run on it, and a relation that never applied is reported as having tested nothing,
     never as passing.
+
+    ``before``: inputs the system runs on, in order, just before this follow-up, their
+    outputs discarded (a history: the same sweep after other sweeps tests that a per-frame
+    system carries nothing from one call to the next). The follow-up is then always run
+    afresh, never batched with the others, and its violation is not re-checked for
+    determinism (a history violation *is* one).
     """
 
     input: Any
     params: Mapping[str, Any] = field(default_factory=dict)
     skipped: str | None = None
+    before: tuple[Any, ...] = ()
 
     @classmethod
     def not_applicable(cls, source: Any, reason: str) -> Followup:

@@ -166,7 +166,7 @@ class _Runner:
         whats = ["the source input"]
         for mr in self.mrs:
             for index, item in enumerate(case.followups.get(mr.name, ())):
-                if item.skipped is not None:
+                if item.skipped is not None or item.before:  # a history runs in order
                     continue
                 values.append(item.input)
                 whats.append(f"follow-up {index} of relation {mr.name!r}")
@@ -205,8 +205,11 @@ class _Runner:
                         recorder.reasons.setdefault(mr.name, item.skipped)
                     continue
                 what = f"follow-up {index} of relation {mr.name!r}"
+                self._run_history(item, fixtures, what, mr.name, stats)
                 try:
-                    output = self._run(item.input, fixtures, what, "followup", mr.name)
+                    output = self._run(
+                        item.input, fixtures, what, "followup", mr.name, fresh=bool(item.before)
+                    )
                 finally:
                     if stats:
                         stats.followups += 1
@@ -216,12 +219,29 @@ class _Runner:
                 if stats:
                     _count_tested(stats, mr, case.source, item.input, verdict)
                 if not verdict.holds:
-                    self._confirm_deterministic(case, source_output, fixtures, mr, stats)
+                    if not item.before:  # a history's violation is itself a re-run's
+                        self._confirm_deterministic(case, source_output, fixtures, mr, stats)
                     if stats:
                         stats.violations += 1  # in reruns: the same failure again
                     raise self._violation(
                         case, mr, item, index, len(items), fixtures, output, verdict, source_output
                     )
+
+    def _run_history(
+        self, item: Followup, fixtures: dict[str, Any], what: str, relation: str, stats: Any
+    ) -> None:
+        """Run the system on the follow-up's earlier inputs, in order (outputs discarded)."""
+        __tracebackhide__ = True
+        for step, earlier in enumerate(item.before):
+            try:
+                self._run(
+                    earlier, fixtures, f"earlier input {step} of {what}", "followup", relation,
+                    fresh=True,
+                )  # fmt: skip
+            finally:
+                if stats:
+                    stats.sut_calls += 1
+                    stats.history_calls += 1
 
     def _violation(
         self,

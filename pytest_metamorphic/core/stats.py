@@ -31,7 +31,8 @@ class RelationStats:
     ``sut_calls`` counts the follow-up executions, determinism re-runs and reduction runs
     this relation caused; the source execution is shared by all relations of a test and
     counted once in :attr:`Recorder.source_calls`. ``minimize_calls`` is the part of
-    ``sut_calls`` spent reducing violations to 1-minimal follow-ups.
+    ``sut_calls`` spent reducing violations to 1-minimal follow-ups, ``history_calls``
+    the part spent on the earlier inputs of history follow-ups (``Followup.before``).
     ``unjudged_changes`` counts follow-ups whose output changed only outside what the
     relation judges (obstacles outside the ROI scope): information, never violations.
 
@@ -53,6 +54,7 @@ class RelationStats:
     crashes: int = 0
     nondeterministic: int = 0
     minimize_calls: int = 0
+    history_calls: int = 0
     unjudged_changes: int = 0
     judged: int = 0
     counted: int = 0

@@ -73,6 +73,8 @@ _PERTURBATIONS = {
 _EDITS = {
     "RemoveObject": "pytest_metamorphic.lidar.followups.edit",
     "InsertObject": "pytest_metamorphic.lidar.followups.insert",
+    "RelocateObject": "pytest_metamorphic.lidar.followups.insert.relocation",
+    "EarlierSweeps": "pytest_metamorphic.lidar.followups.history",
 }
 
 

@@ -119,8 +119,16 @@ def replay_inputs(
     source: Any,
     followup: Any,
 ) -> ReplayResult:
-    """:func:`replay_with` on inputs rebuilt elsewhere (a campaign draws them again)."""
+    """:func:`replay_with` on inputs rebuilt elsewhere (a campaign draws them again).
+
+    A follow-up whose parameters hold a history (a ``params["history"]`` with
+    ``earlier_inputs(source)``, such as
+    :class:`~pytest_metamorphic.lidar.followups.history.EarlierSweeps`) runs after those
+    inputs, as it did in the test."""
     source_output = system(source)
+    earlier = getattr(followup.params.get("history"), "earlier_inputs", None)
+    for value in earlier(source) if callable(earlier) else followup.before:
+        system(value)
     followup_output = system(followup.input)
     index = int(artifact.record.get("followup_index", 0))
     context = CheckContext(source, followup.input, followup.params, index)

@@ -105,8 +105,12 @@ class SessionSummary:
         parts = {
             "on sources, each output reused by its follow-ups": sum(t.source_calls for t in tests),
             "follow-up runs": sum(stats.followups for stats in relations),
+            "earlier inputs run before history follow-ups": sum(
+                stats.history_calls for stats in relations
+            ),
             "re-running sources to check determinism": sum(
-                stats.sut_calls - stats.followups - stats.minimize_calls for stats in relations
+                stats.sut_calls - stats.followups - stats.minimize_calls - stats.history_calls
+                for stats in relations
             ),
             "reducing violations": sum(stats.minimize_calls for stats in relations),
             "re-running failing cases while Hypothesis shrank them": sum(

@@ -31,7 +31,9 @@ _LAZY: dict[str, str] = {
     "quantized_ranges": "_faults",
     "weathered_frames": "_faults",
     "inserted_objects": "_edits",
+    "relocated_objects": "_edits",
     "removed_objects": "_edits",
+    "earlier_sweeps": "_history",
     "aeb_scenarios": "_driving",
     "ego_speed_changes": "_driving",
     "straight_roads": "_driving",
@@ -42,6 +44,7 @@ __all__ = [
     "dead_beams",
     "dropped_points",
     "duplicated_points",
+    "earlier_sweeps",
     "ego_speed_changes",
     "frames",
     "inserted_objects",
@@ -51,6 +54,7 @@ __all__ = [
     "noise_outside_roi",
     "permuted_points",
     "quantized_ranges",
+    "relocated_objects",
     "removed_objects",
     "road_corridors",
     "rois",
@@ -68,7 +72,11 @@ if TYPE_CHECKING:  # pragma: no cover
         ego_speed_changes,
         straight_roads,
     )
-    from pytest_metamorphic.strategies._edits import inserted_objects, removed_objects
+    from pytest_metamorphic.strategies._edits import (
+        inserted_objects,
+        relocated_objects,
+        removed_objects,
+    )
     from pytest_metamorphic.strategies._faults import (
         dead_beams,
         lost_packets,
@@ -76,6 +84,7 @@ if TYPE_CHECKING:  # pragma: no cover
         weathered_frames,
     )
     from pytest_metamorphic.strategies._frames import frames
+    from pytest_metamorphic.strategies._history import earlier_sweeps
     from pytest_metamorphic.strategies._noise import (
         dropped_points,
         duplicated_points,

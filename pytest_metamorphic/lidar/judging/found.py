@@ -45,7 +45,7 @@ def check_class_rule(rule: object) -> ClassRule:
     """``rule`` validated (an :class:`InvalidArgument` names the accepted values)."""
     if rule not in CLASS_RULES:
         raise InvalidArgument(f"classes={rule!r} must be one of {CLASS_RULES}")
-    return rule  # type: ignore[return-value]
+    return rule
 
 
 @dataclass(frozen=True)

@@ -20,8 +20,12 @@ relation                          follow-up                            expected 
 :func:`packet_loss`               1-10 of its packets lost             well-covered O kept (*)
 :func:`range_quantization`        ranges rounded to 5/10/20 cm         O kept
 :func:`object_removal`            one car/pedestrian/cyclist removed   the others kept
-:func:`object_insertion`          a real object put on free ground     it is found, others kept
+:func:`object_insertion`          a real object put on free ground     it is found (its class),
+                                                                       others kept
+:func:`object_relocation`         one object moved nearer, farther,    found where it went (its
+                                  around the sensor or turned          class), others kept
 :func:`adverse_weather`           fog or rain of 200/100/50 m          well-covered O kept
+:func:`history_independence`      the sweep again, after other sweeps  O == O'
 ================================  ===================================  ======================
 
 (*) Cars, pedestrians and cyclists only: ``unknown`` obstacles are not judged by these.
@@ -53,6 +57,7 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from pytest_metamorphic.core.engine import MetamorphicRelation
+from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.followups.perturb import PAPER_NOISE_SIZES
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.judging.tolerance import (
@@ -78,6 +83,7 @@ from pytest_metamorphic.relations.lidar.geometry import (
     rotation_equivariance,
     translation_equivariance,
 )
+from pytest_metamorphic.relations.lidar.history import history_independence
 from pytest_metamorphic.relations.lidar.invariance import (
     PACKET_POINTS,
     duplication_invariance,
@@ -93,6 +99,7 @@ from pytest_metamorphic.relations.lidar.noise import (
 )
 from pytest_metamorphic.relations.lidar.objects import (
     object_insertion,
+    object_relocation,
     object_removal,
     object_templates,
     removal_candidates,
@@ -117,11 +124,13 @@ __all__ = [
     "adverse_weather",
     "beam_loss",
     "duplication_invariance",
+    "history_independence",
     "lidar_relations",
     "mirror_symmetry",
     "mr1_cardinality",
     "mr1_subset",
     "object_insertion",
+    "object_relocation",
     "object_removal",
     "object_templates",
     "outside_noise_invariance",
@@ -141,6 +150,7 @@ def lidar_relations(
     rotation: Literal["quarter_turns", "any"] = "quarter_turns",
     scope: ScopeLike = "roi",
     tolerance: ToleranceLike = "exact",
+    history: bool = True,
 ) -> list[MetamorphicRelation]:
     """The whole library, for ``@metamorphic(relations=lidar_relations())``.
 
@@ -149,9 +159,13 @@ def lidar_relations(
     judge (default: those wholly inside the ROI; ``"all"`` for every obstacle);
     ``tolerance`` how much the outputs of equivalent inputs may differ: ``"exact"``
     (geometric pipelines) or ``"learned"`` (neural networks, whose outputs jitter: see
-    :mod:`pytest_metamorphic.lidar.judging.tolerance`).
+    :mod:`pytest_metamorphic.lidar.judging.tolerance`); ``history``: whether to include
+    :func:`history_independence` (False for a tracker or a detector that accumulates
+    sweeps on purpose: they are not per-frame).
     """
     as_scope(scope)
+    if not isinstance(history, bool):
+        raise InvalidArgument(f"history={history!r} must be True or False")
     profile = as_tolerance(tolerance)
     moved: dict[str, Any] = {}
     if profile.moved is not None:
@@ -177,5 +191,16 @@ def lidar_relations(
         range_quantization(scope=scope),
         object_removal(scope=scope, matcher=kept),
         object_insertion(scope=scope, matcher=kept),
+        object_relocation(scope=scope, matcher=kept, **_relocation_tolerance(profile)),
         adverse_weather(scope=scope),
+        *([history_independence()] if history else []),
     ]
+
+
+def _relocation_tolerance(profile: Tolerance) -> dict[str, float]:
+    """A moved object's place and heading under ``profile``: a learned detector's centre
+    within its 0.5 m of the moved footprint, its heading not compared."""
+    if profile.moved is None:
+        return {}
+    center, _, yaw, _ = profile.moved
+    return {"center_tolerance": max(center, 0.5), "yaw_tolerance": max(yaw, 20.0)}

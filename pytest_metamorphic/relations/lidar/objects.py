@@ -103,7 +103,8 @@ def object_insertion(
     object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
     obstacles of its class, or ``"unknown"``: ``classes``, under either tolerance profile;
     an inserted pedestrian reported as a car is a violation) and
-    :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` (judged source obstacles >= ``clearance`` metres from it and not behind it keep their match).
+    :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` (judged source obstacles
+    >= ``clearance`` metres from it and not behind it keep their match).
 
     Precondition: a detector that finds an unoccluded object of >= 30 returns on free
     ground, and whose decisions about one object do not depend on objects farther away

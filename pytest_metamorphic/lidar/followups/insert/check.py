@@ -117,7 +117,6 @@ class InsertedDetected(Relation):
         return Verdict(
             False,
             self.name,
-            f"{what} is not detected: {found.share:.0%} of its returns lie in follow-up "
-            "obstacles",
+            f"{what} is not detected: {found.share:.0%} of its returns lie in follow-up obstacles",
             details,
         )

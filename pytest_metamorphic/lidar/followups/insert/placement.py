@@ -30,13 +30,17 @@ _SOLID = 0.3  # metres above the local ground that a return counts as solid
 _GROUND_CELL = 1.0  # metres: cells of the local ground estimate of a target frame
 _CELL_KEY = 1_000_003  # cell (i, j) -> i * _CELL_KEY + j
 _BEARING_STEP = 2.0  # degrees between candidate bearings
+_GHOST_DEPTH = 1.0  # metres below a block's median cell height that a cell is a mirror ghost
 
 
 class _TargetGround:
     """A target frame's local ground and its solid returns.
 
     The ground under a return is the lowest 5th-percentile height of the 1 m cells around
-    it (3 x 3): a cell on a car's flank holds no ground return of its own.
+    it (3 x 3): a cell on a car's flank holds no ground return of its own. Cells more than
+    :data:`_GHOST_DEPTH` below the median of the nine are left out: returns below the road
+    are mirror images (KITTI sweep 3 holds a row of them 2.6 m under the road beside a car),
+    and as ground they made the whole road around them "solid".
     """
 
     def __init__(self, frame: Frame) -> None:
@@ -56,7 +60,10 @@ class _TargetGround:
         )
         around = [dx * _CELL_KEY + dy for dx in (-1, 0, 1) for dy in (-1, 0, 1)]
         lowest = np.array(
-            [min(low.get(key + step, math.inf) for step in around) for key in sorted_keys[starts]]
+            [
+                _lowest([low.get(key + step, math.inf) for step in around])
+                for key in sorted_keys[starts]
+            ]
         )
         self.height = np.empty(len(xyz))
         self.height[order] = np.repeat(lowest, counts)
@@ -69,16 +76,21 @@ class _TargetGround:
         self.solid_azimuth = azimuth[by_azimuth]
         self.solid_range = np.hypot(solid[by_azimuth, 0], solid[by_azimuth, 1])
 
-    def ground_under(self, box: Box) -> float | None:
+    def ground_under(self, box: Box, *, vacated: Box | None = None) -> float | None:
         """Median height of the non-solid returns in the grown footprint, or None when
-        there are fewer than 5 (no ground seen there) or a solid return lies in it."""
+        there are fewer than 5 (no ground seen there) or a solid return lies in it
+        (``vacated``: where an object moved away stood; stray returns of it there, a
+        mirror or an antenna outside its box, do not count)."""
         reach = math.hypot(box.size[0], box.size[1]) / 2 + _FREE_MARGIN
         near = np.asarray(self.tree.query_ball_point(box.center[:2], reach), dtype=np.intp)
         if len(near) == 0:
             return None
         footprint = box.grown(_FREE_MARGIN)
         inside = near[footprint_distances(self.xyz[near], [footprint]) == 0]
-        if self.solid[inside].any() or len(inside) < 5:
+        solid = self.solid[inside]
+        if vacated is not None and solid.any():
+            solid &= ~vacated.grown(_FREE_MARGIN).contains(self.xyz[inside])
+        if solid.any() or len(inside) < 5:
             return None
         return float(np.median(self.xyz[inside, 2]))
 
@@ -94,6 +106,15 @@ class _TargetGround:
             a, b = np.searchsorted(self.solid_azimuth, [start, stop])
             count += int((self.solid_range[a:b] < nearest).sum())
         return count <= 2
+
+
+def _lowest(lows: list[float]) -> float:
+    """The lowest of a 3 x 3 block's cell heights that is not a ghost below the road."""
+    seen = [value for value in lows if value != math.inf]
+    if not seen:
+        return math.inf
+    floor = float(np.median(seen)) - _GHOST_DEPTH
+    return min(value for value in seen if value >= floor)
 
 
 def _azimuth_spans(start: float, stop: float) -> list[tuple[float, float]]:

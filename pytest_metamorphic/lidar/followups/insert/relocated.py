@@ -130,8 +130,7 @@ class RelocatedFound(Relation):
             return Verdict(
                 False,
                 self.name,
-                f"{what} is not found: {found.share:.0%} of its returns lie in follow-up "
-                "obstacles",
+                f"{what} is not found: {found.share:.0%} of its returns lie in follow-up obstacles",
                 details,
             )
         holder = _holder(boxes, moved, accepted=accepted, share=0.0)

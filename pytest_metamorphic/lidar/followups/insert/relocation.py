@@ -22,6 +22,7 @@ in scope, smallest first.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -91,8 +92,9 @@ class Move:
         if self.kind == "bearing":
             return math.radians(self.amount), 0.0, 0.0
         angle = math.radians(self.amount)
-        px, py = template.range * math.cos(template.bearing), template.range * math.sin(
-            template.bearing
+        px, py = (
+            template.range * math.cos(template.bearing),
+            template.range * math.sin(template.bearing),
         )
         c, s = math.cos(angle), math.sin(angle)
         return angle, px - (c * px - s * py), py - (s * px + c * py)
@@ -117,8 +119,7 @@ def moved_box(box: Box, motion: tuple[float, float, float]) -> Box:
     c, s = math.cos(angle), math.sin(angle)
     x, y, z = box.center
     center = (c * x - s * y + tx, s * x + c * y + ty, z)
-    yaw = math.remainder(box.yaw + angle, 2 * math.pi)
-    return Box(center, box.size, yaw, box.label, box.points)
+    return dataclasses.replace(box, center=center, yaw=math.remainder(box.yaw + angle, 2 * math.pi))
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,7 +172,7 @@ class RelocateObject:
         without = without if without is not None else removal.apply(frame)
         target = ground if ground is not None else _TargetGround(without)
         probe = chosen.box_at(move.placement(chosen, 0.0))
-        ground_z = target.ground_under(probe)
+        ground_z = target.ground_under(probe, vacated=box)
         if ground_z is None or not target.in_clear_view(probe):
             return None
         insertion = InsertObject.onto(
@@ -304,7 +305,9 @@ class Movable:
         if not layout.min_range + 2.0 < placement.range < 0.9 * layout.max_range:
             return False
         probe = self.template.box_at(placement)
-        if self.ground.ground_under(probe) is None or not self.ground.in_clear_view(probe):
+        if self.ground.ground_under(probe, vacated=self.box) is None:
+            return False
+        if not self.ground.in_clear_view(probe):
             return False
         return bool(scope.judged([probe], self.frame)[0])
 

@@ -46,6 +46,12 @@ constant_range_filter       clusters whose returns take at most 2 distinct range
 dim_cluster_filter          clusters of mean intensity below 0.05 dropped as spray
 see_through_filter          clusters spanning >= 1 degree whose returns fill < 70 % of the
                             0.2-degree bearings across them dropped as vegetation
+front_yaw_correction        boxes ahead or behind that look crossing turned to lie along the
+                            road (Autoware shape estimation, pull request #11309)
+sparse_heading_flip         car boxes of < 80 returns extended to a default size from the
+                            wrong edge: turned 90 degrees (pull request #11634's mechanism)
+temporal_ground             ground heights kept per 2 m cell from sweep to sweep and blended
+                            (an elevation map's smoothing left on in a per-frame detector)
 ==========================  =================================================================
 """
 
@@ -67,6 +73,11 @@ from pytest_metamorphic.lidar.systems.perception.mutants.inputs import (
     ShortRangeGate,
     TruncatingBuffer,
     VoxelBudget,
+)
+from pytest_metamorphic.lidar.systems.perception.mutants.motion import (
+    FrontYawCorrection,
+    SparseHeadingFlip,
+    TemporalGround,
 )
 from pytest_metamorphic.lidar.systems.perception.mutants.object_filters import (
     ConstantRangeFilter,
@@ -120,6 +131,9 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         ConstantRangeFilter,
         DimClusterFilter,
         SeeThroughFilter,
+        FrontYawCorrection,
+        SparseHeadingFlip,
+        TemporalGround,
     )
 }
 
