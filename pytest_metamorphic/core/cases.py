@@ -44,9 +44,11 @@ class Followup:
 
     ``before``: inputs the system runs on, in order, just before this follow-up, their
     outputs discarded (a history: the same sweep after other sweeps tests that a per-frame
-    system carries nothing from one call to the next). The follow-up is then always run
-    afresh, never batched with the others, and its violation is not re-checked for
-    determinism (a history violation *is* one).
+    system carries nothing from one call to the next). The engine then runs the source
+    twice first and compares the follow-up's output with the second run's (the source
+    right after itself: a failing case replays alike, whatever ran before it), runs the
+    follow-up afresh, never batched, and does not re-check its violation for determinism
+    (a history violation *is* one).
     """
 
     input: Any

@@ -205,7 +205,9 @@ class _Runner:
                         recorder.reasons.setdefault(mr.name, item.skipped)
                     continue
                 what = f"follow-up {index} of relation {mr.name!r}"
-                self._run_history(item, fixtures, what, mr.name, stats)
+                # A history's output is compared with the source's right after the source.
+                settled = self._run_history(case, item, fixtures, what, mr.name, stats)
+                compared = source_output if settled is _NO_HISTORY else settled
                 try:
                     output = self._run(
                         item.input, fixtures, what, "followup", mr.name, fresh=bool(item.before)
@@ -215,7 +217,7 @@ class _Runner:
                         stats.followups += 1
                         stats.sut_calls += 1
                 context = CheckContext(case.source, item.input, item.params, index)
-                verdict = mr.relation.check(source_output, output, context)
+                verdict = mr.relation.check(compared, output, context)
                 if stats:
                     _count_tested(stats, mr, case.source, item.input, verdict)
                 if not verdict.holds:
@@ -224,24 +226,38 @@ class _Runner:
                     if stats:
                         stats.violations += 1  # in reruns: the same failure again
                     raise self._violation(
-                        case, mr, item, index, len(items), fixtures, output, verdict, source_output
+                        case, mr, item, index, len(items), fixtures, output, verdict, compared
                     )
 
     def _run_history(
-        self, item: Followup, fixtures: dict[str, Any], what: str, relation: str, stats: Any
-    ) -> None:
-        """Run the system on the follow-up's earlier inputs, in order (outputs discarded)."""
+        self,
+        case: MetamorphicCase,
+        item: Followup,
+        fixtures: dict[str, Any],
+        what: str,
+        relation: str,
+        stats: Any,
+    ) -> Any:
+        """For a follow-up with earlier inputs: the source's output right after the source
+        itself (run twice: what a system with state gives after that source, whatever ran
+        before the case, so a failing case replays alike), then the earlier inputs, in
+        order (outputs discarded). ``_NO_HISTORY`` for any other follow-up."""
         __tracebackhide__ = True
-        for step, earlier in enumerate(item.before):
+        if not item.before:
+            return _NO_HISTORY
+        runs = [(case.source, "the source input (before a history)")] * 2
+        runs += [
+            (value, f"earlier input {step} of {what}") for step, value in enumerate(item.before)
+        ]
+        outputs = []
+        for value, label in runs:
             try:
-                self._run(
-                    earlier, fixtures, f"earlier input {step} of {what}", "followup", relation,
-                    fresh=True,
-                )  # fmt: skip
+                outputs.append(self._run(value, fixtures, label, "followup", relation, fresh=True))
             finally:
                 if stats:
                     stats.sut_calls += 1
                     stats.history_calls += 1
+        return outputs[1]
 
     def _violation(
         self,
@@ -525,6 +541,9 @@ def metamorphic(
         return wrapped
 
     return decorate
+
+
+_NO_HISTORY = object()  # a follow-up without earlier inputs
 
 
 def _count_tested(

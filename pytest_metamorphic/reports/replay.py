@@ -127,8 +127,11 @@ def replay_inputs(
     inputs, as it did in the test."""
     source_output = system(source)
     earlier = getattr(followup.params.get("history"), "earlier_inputs", None)
-    for value in earlier(source) if callable(earlier) else followup.before:
-        system(value)
+    history = list(earlier(source)) if callable(earlier) else list(followup.before)
+    if history:  # as the engine: the source right after itself, then the history
+        source_output = system(source)
+        for value in history:
+            system(value)
     followup_output = system(followup.input)
     index = int(artifact.record.get("followup_index", 0))
     context = CheckContext(source, followup.input, followup.params, index)

@@ -203,4 +203,4 @@ def _relocation_tolerance(profile: Tolerance) -> dict[str, float]:
     if profile.moved is None:
         return {}
     center, _, yaw, _ = profile.moved
-    return {"center_tolerance": max(center, 0.5), "yaw_tolerance": max(yaw, 20.0)}
+    return {"center_tolerance": max(center, 0.5), "yaw_tolerance": max(yaw, 30.0)}

@@ -138,7 +138,7 @@ def object_relocation(
     min_detected: float = 0.5,
     classes: ClassRule = "own_or_unknown",
     center_tolerance: float = 0.5,
-    yaw_tolerance: float = 20.0,
+    yaw_tolerance: float = 30.0,
     matcher: Matcher | None = None,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",

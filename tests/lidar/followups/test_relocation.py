@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic import Followup, InvalidArgument, MetamorphicViolation, metamorphic
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.followups.edit import removal_candidates
-from pytest_metamorphic.lidar.followups.insert import Placement
+from pytest_metamorphic.lidar.followups.edit import RemoveObject, removal_candidates
+from pytest_metamorphic.lidar.followups.insert import InsertObject, ObjectTemplate, Placement
 from pytest_metamorphic.lidar.followups.insert.relocated import RelocatedFound
 from pytest_metamorphic.lidar.followups.insert.relocation import (
     MAX_TURN,
@@ -79,8 +79,12 @@ def test_a_relocation_takes_the_object_out_and_casts_it_where_it_goes() -> None:
     relocation = item.relocate(Move("range", 20), layout=layout)
     assert relocation is not None
     moved = relocation.apply(frame)
-    # Nothing of the object is left where it stood; its re-cast returns are where it went.
-    assert not item.box.grown(0.1).contains(moved.cloud.xyz).sum() > 0.1 * len(relocation.original)
+    # Nothing of the object is left where it stood (above its ground); its re-cast returns
+    # are where it went.
+    without = relocation.removal.apply(frame).cloud.xyz
+    above = without[:, 2] > item.box.bottom_z + 0.2
+    assert (item.box.grown(0.1).contains(without) & above).sum() <= 0.02 * len(relocation.original)
+    assert len(moved.cloud) == len(without) - len(relocation.insertion.hidden) + len(relocation)
     assert relocation.box.grown(0.2).contains(moved.cloud.xyz).sum() >= len(relocation)
     # Farther away, fewer returns (density follows the range).
     near = item.relocate(Move("range", -20), layout=layout)
@@ -96,21 +100,30 @@ def test_a_relocation_takes_the_object_out_and_casts_it_where_it_goes() -> None:
     assert again.move == relocation.move and again.motion == relocation.motion
 
 
-def test_a_car_re_cast_where_it_stood_keeps_its_box() -> None:
-    """The template casts a patch per return: before, KITTI sweep 3's car 13.5 m away came
-    out 1 m shorter, its far roof edge lost."""
+def test_a_car_re_cast_where_it_stood_keeps_its_extent() -> None:
+    """The template casts a patch per return: before, KITTI sweep 3's car 13.5 m away, cast
+    again where it stood, lost 84 of its 683 returns and its far end (the reference's box
+    came out 1 m shorter)."""
     frame = labelled_kitti(3)
-    item = _movable(frame)
-    layout = frame_sensor(frame).sensor
-    relocation = item.relocate(Move("turn", 0.0), layout=layout)
-    assert relocation is not None
-    before = max(REFERENCE(frame), key=lambda b: b.grown(0.1).contains(relocation.original).sum())
-    after = max(
-        REFERENCE(relocation.apply(frame)),
-        key=lambda b: b.grown(0.1).contains(relocation.insertion.points[:, :3]).sum(),
+    box = removal_candidates(frame, scope="roi")[0]
+    template = ObjectTemplate.from_frame(frame, box)
+    removal = RemoveObject(box)
+    ground_z, _ = removal.ground_height(frame)
+    again = InsertObject.onto(
+        removal.apply(frame),
+        template,
+        Placement(template.bearing, template.range, ground_z),
+        layout=frame_sensor(frame).sensor,
     )
-    assert after.label == before.label == "car"
-    assert after.size[0] == pytest.approx(before.size[0], abs=0.1)
+    assert len(again) >= len(template.vertices)
+
+    def along(points: np.ndarray) -> np.ndarray:
+        offset = points[:, :2] - np.asarray(box.center[:2])
+        return offset @ np.array([math.cos(box.yaw), math.sin(box.yaw)])
+
+    cast, seen = along(again.points[:, :3]), template.vertices[:, 0]
+    assert cast.min() == pytest.approx(seen.min(), abs=0.15)
+    assert cast.max() == pytest.approx(seen.max(), abs=0.15)
 
 
 def test_the_check_holds_for_the_reference_and_names_a_lost_class() -> None:
@@ -136,22 +149,32 @@ def test_the_check_holds_for_the_reference_and_names_a_lost_class() -> None:
     assert check.check(elsewhere, [], context).details["judged"] == 0
 
 
-def test_a_heading_off_by_a_quarter_turn_is_a_violation() -> None:
+def test_a_heading_off_is_a_violation_and_a_square_box_has_none() -> None:
     frame = street()
-    item = _movable(frame)  # the car 12.3 m away
+    car = next(box for box in removal_candidates(frame, scope="roi") if box.label == "car")
+    item = Movable.of(frame, car)
+    assert item is not None
     relocation = item.relocate(Move("bearing", 10), layout=frame_sensor(frame).sensor)
     assert relocation is not None
     followup = relocation.apply(frame)
     context = CheckContext(frame, followup, relocation.params(), 0)
-    turned = [
-        dataclasses.replace(box, yaw=box.yaw + math.pi / 2, size=(box.size[1] + 2.5, *box.size[1:]))
-        if box.label == "car"
-        else box
-        for box in REFERENCE(followup)
-    ]
-    verdict = RelocatedFound().check(REFERENCE(frame), turned, context)
-    assert not verdict.holds
-    assert "outside where it went" in verdict.explanation or "degrees off" in verdict.explanation
+    source = REFERENCE(frame)
+    before = next(b for b in source if b.grown(0.1).contains(relocation.original).sum() > 100)
+    expected = relocation.expected(before)
+    check = RelocatedFound()
+    # One box holding the whole moved car, centred where it should be, headed 60 degrees off.
+    for size, holds in (((9.0, 5.5, 3.0), False), ((7.0, 6.0, 3.0), True)):
+        claimed = dataclasses.replace(expected, size=size, yaw=expected.yaw + math.radians(60))
+        verdict = check.check(source, [claimed], context)
+        assert verdict.holds is holds, verdict.explanation
+    assert (
+        "headed 60 degrees off"
+        in check.check(
+            source,
+            [dataclasses.replace(expected, size=(9.0, 5.5, 3.0), yaw=expected.yaw + 1.0472)],
+            context,
+        ).explanation
+    )
 
 
 def test_relocation_is_sound_on_the_reference_and_finds_a_sparse_heading_flip() -> None:
@@ -194,6 +217,5 @@ def test_the_strategy_draws_moves_and_says_why_nothing_moves() -> None:
     assert _draw(relocated_objects(frame, kinds=("turn",))).params["move"].startswith("turned")
     with pytest.raises(InvalidArgument, match="kinds"):
         relocated_objects(frame, kinds=("jump",))  # type: ignore[arg-type]
-    nothing = np.zeros(len(frame.cloud), dtype=bool)
-    empty = dataclasses.replace(frame, boxes=(), cloud=frame.cloud[nothing])
-    assert "can move" in (_draw(relocated_objects(empty)).skipped or "")
+    # No object has returns enough for a template of 100,000.
+    assert "can move" in (_draw(relocated_objects(frame, min_returns=100_000)).skipped or "")

@@ -22,7 +22,10 @@ from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, footprint_di
 
 __all__ = ["RelocatedFound"]
 
-_ELONGATED = 2.2  # metres: boxes at least this long (both runs) have a heading to compare
+# Boxes at least this long, and this many times as long as wide, have a heading to compare
+# (a car cut to its front half is nearly square, and its box's heading is arbitrary).
+_ELONGATED = 2.2
+_ASPECT = 1.5
 
 
 def _positive(value: object, name: str) -> float:
@@ -46,8 +49,8 @@ class RelocatedFound(Relation):
     ``"unknown"`` accepts any class), and the obstacle holding most of them must stand
     with its centre within ``center_tolerance`` metres of the footprint of the source
     obstacle moved by the same motion, headed within ``yaw_tolerance`` degrees of it
-    (modulo 180) when both boxes are at least 2.2 m long (shorter boxes have no heading
-    to speak of). A turned object's class is not judged: turned, it shows the sensor
+    (modulo 180) when both boxes are at least 2.2 m long and 1.5 times as long as wide
+    (other boxes have no heading to speak of). A turned object's class is not judged: turned, it shows the sensor
     another outline (a cyclist turned toward it is as short as a pedestrian).
 
     Sizes are not compared: the object is re-sampled at another range or angle, and a
@@ -63,7 +66,7 @@ class RelocatedFound(Relation):
         min_height_share: float = 0.8,
         classes: ClassRule = "own_or_unknown",
         center_tolerance: float = 0.5,
-        yaw_tolerance: float = 20.0,
+        yaw_tolerance: float = 30.0,
         scope: ScopeLike = "roi",
     ) -> None:
         if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
@@ -201,8 +204,9 @@ def _footprint_gap(found: Box, expected: Box) -> float:
 
 def _heading_gap(a: Box, b: Box) -> float | None:
     """Degrees between the headings of two elongated boxes, modulo 180 (None: either is
-    shorter than 2.2 m)."""
-    if min(a.size[0], b.size[0]) < _ELONGATED:
-        return None
+    shorter than 2.2 m or less than 1.5 times as long as wide)."""
+    for box in (a, b):
+        if box.size[0] < _ELONGATED or box.size[0] < _ASPECT * box.size[1]:
+            return None
     gap = abs(math.remainder(a.yaw - b.yaw, math.pi))
     return math.degrees(gap)

@@ -46,8 +46,8 @@ constant_range_filter       clusters whose returns take at most 2 distinct range
 dim_cluster_filter          clusters of mean intensity below 0.05 dropped as spray
 see_through_filter          clusters spanning >= 1 degree whose returns fill < 70 % of the
                             0.2-degree bearings across them dropped as vegetation
-front_yaw_correction        boxes ahead or behind that look crossing turned to lie along the
-                            road (Autoware shape estimation, pull request #11309)
+view_yaw_correction         boxes lying across the line of sight turned to lie along it
+                            (Autoware shape estimation's end-on correction, pull request #11309)
 sparse_heading_flip         car boxes of < 80 returns extended to a default size from the
                             wrong edge: turned 90 degrees (pull request #11634's mechanism)
 temporal_ground             ground heights kept per 2 m cell from sweep to sweep and blended
@@ -75,9 +75,9 @@ from pytest_metamorphic.lidar.systems.perception.mutants.inputs import (
     VoxelBudget,
 )
 from pytest_metamorphic.lidar.systems.perception.mutants.motion import (
-    FrontYawCorrection,
     SparseHeadingFlip,
     TemporalGround,
+    ViewYawCorrection,
 )
 from pytest_metamorphic.lidar.systems.perception.mutants.object_filters import (
     ConstantRangeFilter,
@@ -131,7 +131,7 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         ConstantRangeFilter,
         DimClusterFilter,
         SeeThroughFilter,
-        FrontYawCorrection,
+        ViewYawCorrection,
         SparseHeadingFlip,
         TemporalGround,
     )

@@ -21,7 +21,7 @@ from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.systems.perception.clustering import Clusters
 from pytest_metamorphic.lidar.systems.perception.pipeline import ReferencePerception
 
-__all__ = ["FrontYawCorrection", "SparseHeadingFlip", "TemporalGround"]
+__all__ = ["SparseHeadingFlip", "TemporalGround", "ViewYawCorrection"]
 
 
 def _turned_quarter(box: Box, size: tuple[float, float] | None = None) -> Box:
@@ -31,22 +31,20 @@ def _turned_quarter(box: Box, size: tuple[float, float] | None = None) -> Box:
     return dataclasses.replace(box, size=(length, width, box.size[2]), yaw=yaw)
 
 
-class FrontYawCorrection(ReferencePerception):
-    """Boxes of objects ahead or behind that look crossing are turned to lie along the road.
+class ViewYawCorrection(ReferencePerception):
+    """Boxes that lie across the line of sight are turned to lie along it.
 
     Modelled on the yaw correction first proposed for Autoware's shape estimation
-    (autoware_universe pull request #11309): a cluster within ``cone`` degrees of the
-    ego's forward or backward axis whose box heading is within ``window`` degrees of
-    crossing it is taken for a car seen end-on, turned by 90 degrees and its sides
-    swapped. A car that really crosses ahead (at a junction, pulling out) gets a heading
-    90 degrees wrong. Turns and mirrors of the whole scene keep what lies ahead ahead,
-    and an object that stays where it stands is corrected the same way every time; an
-    object moved around the sensor into the cone, or turned in place into or out of the
-    window, is not.
+    (autoware_universe pull request #11309): a car seen end-on shows one short face, its
+    L-shape fit lies across the line of sight, and the correction turns such boxes by 90
+    degrees and swaps their sides. Applied to every box within ``window`` degrees of
+    lying across the line of sight, it also turns a car that really crosses it (at a
+    junction, pulling out). Whole-scene turns and mirrors keep every object's view, and an
+    object that stays where it stands is corrected the same way every time; an object
+    turned in place into or out of the window is not.
     """
 
-    name = "front_yaw_correction"
-    cone = 30.0
+    name = "view_yaw_correction"
     window = 30.0
 
     def build_boxes(
@@ -56,9 +54,8 @@ class FrontYawCorrection(ReferencePerception):
 
     def _corrected(self, box: Box) -> Box:
         bearing = math.atan2(box.center[1], box.center[0])
-        off_axis = abs(math.remainder(bearing, math.pi))  # 0 ahead or behind
-        crossing = abs(abs(math.remainder(box.yaw, math.pi)) - math.pi / 2)  # 0 crossing
-        if off_axis <= math.radians(self.cone) and crossing <= math.radians(self.window):
+        view = math.remainder(box.yaw - bearing, math.pi)  # 0: along the line of sight
+        if abs(abs(view) - math.pi / 2) <= math.radians(self.window):
             return _turned_quarter(box)
         return box
 
@@ -90,13 +87,14 @@ class SparseHeadingFlip(ReferencePerception):
 
 
 class TemporalGround(ReferencePerception):
-    """Ground heights kept per 2 m cell from one sweep to the next and blended.
+    """Ground heights averaged per 2 m cell over this sweep and the previous one.
 
-    An elevation map's smoothing left on in a detector that is per-frame by contract:
-    each cell's ground is half the current sweep's estimate and half the height the cell
-    had after the previous sweep. Within one recording the ground barely changes; after
-    another sweep (turned, from elsewhere) a cell's ground is off by the difference, and
-    low objects sink into it or clutter rises out of it.
+    A smoothing of the ground estimate over two sweeps (a moving average, as an
+    elevation map keeps) left on in a detector that is per-frame by contract: each cell's
+    ground is the mean of the current sweep's estimate and the previous sweep's. Within
+    one recording the ground barely changes between sweeps; after another sweep (turned,
+    from elsewhere) a cell's ground is off by half the difference, and low objects sink
+    into it or clutter rises out of it.
     """
 
     name = "temporal_ground"
@@ -118,8 +116,10 @@ class TemporalGround(ReferencePerception):
         now = np.zeros(len(keys))
         np.add.at(now, inverse, current.astype(np.float64))
         now /= np.bincount(inverse, minlength=len(keys))
-        before = np.array([self._heights.get((int(i), int(j)), h) for (i, j), h in zip(keys, now)])
+        cells_now = [(int(i), int(j)) for i, j in keys.tolist()]
+        before = np.array([self._heights.get(key, h) for key, h in zip(cells_now, now)])
+        self._heights = dict(
+            zip(cells_now, now.tolist(), strict=True)
+        )  # this sweep's, for the next
         blended = 0.5 * now + 0.5 * before
-        for (i, j), height in zip(keys.tolist(), blended.tolist(), strict=True):
-            self._heights[(i, j)] = height
         return (current + (blended - now)[inverse]).astype(np.float32)
