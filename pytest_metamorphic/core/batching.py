@@ -23,9 +23,12 @@ from pytest_metamorphic.core.errors import InvalidArgument
 __all__ = [
     "DEFAULT_BATCH_SIZE",
     "BatchSystem",
+    "FixturedBatch",
+    "SingleOfBatch",
     "batch_size_of",
     "batched",
     "check_batch_outputs",
+    "check_batch_request",
     "supports_batches",
 ]
 
@@ -172,3 +175,43 @@ class SystemCalls:
             except Exception as error:
                 results.append((None, error))
         return results
+
+
+# -- what @metamorphic(batch=...) calls ------------------------------------------------------
+
+
+def check_batch_request(batch: Any) -> int:
+    """The batch size ``batch=`` asks for (0: no batches)."""
+    if batch is False:
+        return 0
+    if batch is True:
+        return DEFAULT_BATCH_SIZE
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise InvalidArgument(f"batch={batch!r} must be True, False or a batch size >= 1")
+    return batch
+
+
+class SingleOfBatch:
+    """A batch function called with one input: ``fn([x], **fixtures)[0]``."""
+
+    def __init__(self, fn: Callable[..., Any]) -> None:
+        self.fn = fn
+
+    def __call__(self, value: Any, **fixtures: Any) -> Any:
+        return check_batch_outputs(self.fn([value], **fixtures), 1, self.fn)[0]
+
+
+class FixturedBatch:
+    """The decorated batch function with the test's fixtures bound, as a batch system."""
+
+    def __init__(self, fn: Any, fixtures: dict[str, Any], batch_size: int) -> None:
+        self.fn, self.fixtures, self.batch_size = fn, fixtures, batch_size
+
+    def __call__(self, value: Any) -> Any:
+        return SingleOfBatch(self.fn)(value, **self.fixtures)
+
+    def run_batch(self, values: Sequence[Any]) -> Any:
+        return self.fn(list(values), **self.fixtures)
+
+    def __repr__(self) -> str:
+        return getattr(self.fn, "__qualname__", repr(self.fn))

@@ -26,7 +26,18 @@ from hypothesis import given, reject, settings
 from hypothesis.errors import HypothesisException
 from hypothesis.strategies import SearchStrategy
 
-from pytest_metamorphic.core.batching import DEFAULT_BATCH_SIZE, SystemCalls, check_batch_outputs
+from pytest_metamorphic.core.batching import (
+    FixturedBatch as _FixturedBatch,
+)
+from pytest_metamorphic.core.batching import (
+    SingleOfBatch as _SingleOfBatch,
+)
+from pytest_metamorphic.core.batching import (
+    SystemCalls,
+)
+from pytest_metamorphic.core.batching import (
+    check_batch_request as _check_batch,
+)
 from pytest_metamorphic.core.cases import (
     CASE_ARGUMENT,
     Followup,
@@ -564,43 +575,6 @@ def _count_tested(
 def _case_digest(case: MetamorphicCase | None) -> str:
     """Tells a case from every other: the one that timed out is recognised on replay."""
     return "" if case is None else value_digest((case.source, case.followups))
-
-
-def _check_batch(batch: Any) -> int:
-    """The batch size ``batch=`` asks for (0: no batches)."""
-    if batch is False:
-        return 0
-    if batch is True:
-        return DEFAULT_BATCH_SIZE
-    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
-        raise InvalidArgument(f"batch={batch!r} must be True, False or a batch size >= 1")
-    return batch
-
-
-class _SingleOfBatch:
-    """A batch function called with one input: ``fn([x], **fixtures)[0]``."""
-
-    def __init__(self, fn: Callable[..., Any]) -> None:
-        self.fn = fn
-
-    def __call__(self, value: Any, **fixtures: Any) -> Any:
-        return check_batch_outputs(self.fn([value], **fixtures), 1, self.fn)[0]
-
-
-class _FixturedBatch:
-    """The decorated batch function with the test's fixtures bound, as a batch system."""
-
-    def __init__(self, fn: Any, fixtures: dict[str, Any], batch_size: int) -> None:
-        self.fn, self.fixtures, self.batch_size = fn, fixtures, batch_size
-
-    def __call__(self, value: Any) -> Any:
-        return _SingleOfBatch(self.fn)(value, **self.fixtures)
-
-    def run_batch(self, values: Sequence[Any]) -> Any:
-        return self.fn(list(values), **self.fixtures)
-
-    def __repr__(self) -> str:
-        return getattr(self.fn, "__qualname__", repr(self.fn))
 
 
 @dataclass(frozen=True)

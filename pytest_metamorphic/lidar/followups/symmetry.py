@@ -24,7 +24,7 @@ import numpy as np
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
 
-__all__ = ["MirrorAcrossX", "ShiftAlongX"]
+__all__ = ["MirrorAcrossX", "ShiftAlongX", "ShiftScene"]
 
 
 @dataclass(frozen=True)
@@ -94,3 +94,46 @@ class ShiftAlongX:
 
     def params(self) -> dict[str, Any]:
         return {"shift_x_m": self.dx}
+
+
+@dataclass(frozen=True)
+class ShiftScene:
+    """Shift a frame's points, ROI (rasterised afresh) and boxes by ``(dx, dy)`` metres.
+
+    :class:`ShiftAlongX` for any shift: by amounts that are no multiple of a detector's
+    grid cell, every cell border cuts the scene elsewhere.
+    """
+
+    dx: float
+    dy: float
+
+    def __post_init__(self) -> None:
+        for name in ("dx", "dy"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise InvalidArgument(f"{name}={value!r} must be a finite number of metres")
+            if not math.isfinite(value):
+                raise InvalidArgument(f"{name}={value!r} must be a finite number of metres")
+            object.__setattr__(self, name, float(value))
+
+    def apply(self, frame: Frame) -> Frame:
+        if not isinstance(frame, Frame):
+            raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+        points = frame.cloud.points.copy()
+        points[:, 0] += np.float32(self.dx)
+        points[:, 1] += np.float32(self.dy)
+        roi = frame.roi
+        if roi is not None:
+            move = getattr(roi, "translated", None)
+            if not callable(move):
+                raise InvalidArgument(f"the frame's roi ({type(roi).__name__}) has no translated()")
+            roi = move(self.dx, self.dy)
+        return dataclasses.replace(
+            frame,
+            cloud=frame.cloud.with_points(points),
+            roi=roi,
+            boxes=tuple(box.translated(self.dx, self.dy) for box in frame.boxes),
+        )
+
+    def params(self) -> dict[str, Any]:
+        return {"shift_x_m": self.dx, "shift_y_m": self.dy}

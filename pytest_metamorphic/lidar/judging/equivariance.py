@@ -292,21 +292,26 @@ class MirroredObstacles(MovedObstacles):
 
 
 class ShiftedObstacles(MovedObstacles):
-    """``O'`` is ``O`` shifted by the follow-up's ``shift_x_m`` along x (see
-    :class:`MovedObstacles`)."""
+    """``O'`` is ``O`` shifted by the follow-up's ``shift_x_m`` along x and ``shift_y_m``
+    (default 0) along y (see :class:`MovedObstacles`)."""
 
     moved = "shifted"
 
     def _dx(self, context: CheckContext) -> float:
         return self._param(
-            context, "shift_x_m", "shift", "translation_equivariance() or ShiftAlongX"
+            context, "shift_x_m", "shift", "translation_equivariance(), ShiftAlongX or ShiftScene"
         )
 
+    def _dy(self, context: CheckContext) -> float:
+        if "shift_y_m" not in context.params:
+            return 0.0
+        return self._param(context, "shift_y_m", "shift", "ShiftScene")
+
     def move(self, box: Box, context: CheckContext) -> Box:
-        return box.translated(self._dx(context), 0.0)
+        return box.translated(self._dx(context), self._dy(context))
 
     def move_details(self, context: CheckContext) -> dict[str, Any]:
-        return {"shift_x_m": self._dx(context)}
+        return {"shift_x_m": self._dx(context), "shift_y_m": self._dy(context)}
 
 
 _CHECKS: dict[str, type[MovedObstacles]] = {

@@ -177,6 +177,7 @@ def lidar_relations(
     if profile.moved_shared:
         moved["exclusive"] = False
     same, kept, support = profile.same, profile.kept, profile.same_min_points
+    place, heading = _relocation_tolerance(profile)
     return [
         mr1_subset(n=noise, scope=scope, matcher=kept),
         mr1_cardinality(n=noise, scope=scope),
@@ -191,16 +192,17 @@ def lidar_relations(
         range_quantization(scope=scope),
         object_removal(scope=scope, matcher=kept),
         object_insertion(scope=scope, matcher=kept),
-        object_relocation(scope=scope, matcher=kept, **_relocation_tolerance(profile)),
+        object_relocation(scope=scope, matcher=kept, center_tolerance=place, yaw_tolerance=heading),
         adverse_weather(scope=scope),
         *([history_independence()] if history else []),
     ]
 
 
-def _relocation_tolerance(profile: Tolerance) -> dict[str, float]:
-    """A moved object's place and heading under ``profile``: a learned detector's centre
-    within its 0.5 m of the moved footprint, its heading not compared."""
+def _relocation_tolerance(profile: Tolerance) -> tuple[float, float]:
+    """A moved object's place and heading tolerances under ``profile`` (metres, degrees):
+    the relation's own (0.5 m outside its moved footprint, 30 degrees) or looser ones (a
+    learned detector's headings are not compared)."""
     if profile.moved is None:
-        return {}
+        return 0.5, 30.0
     center, _, yaw, _ = profile.moved
-    return {"center_tolerance": max(center, 0.5), "yaw_tolerance": max(yaw, 30.0)}
+    return max(center, 0.5), max(yaw, 30.0)

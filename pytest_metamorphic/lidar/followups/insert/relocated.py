@@ -50,8 +50,9 @@ class RelocatedFound(Relation):
     with its centre within ``center_tolerance`` metres of the footprint of the source
     obstacle moved by the same motion, headed within ``yaw_tolerance`` degrees of it
     (modulo 180) when both boxes are at least 2.2 m long and 1.5 times as long as wide
-    (other boxes have no heading to speak of). A turned object's class is not judged: turned, it shows the sensor
-    another outline (a cyclist turned toward it is as short as a pedestrian).
+    (other boxes have no heading to speak of). A turned object's class is not judged:
+    turned, it shows the sensor another outline (a cyclist turned toward it is as short as
+    a pedestrian).
 
     Sizes are not compared: the object is re-sampled at another range or angle, and a
     box fitted to the returns of one face changes length with how many rows reach its far

@@ -117,7 +117,9 @@ class TemporalGround(ReferencePerception):
         np.add.at(now, inverse, current.astype(np.float64))
         now /= np.bincount(inverse, minlength=len(keys))
         cells_now = [(int(i), int(j)) for i, j in keys.tolist()]
-        before = np.array([self._heights.get(key, h) for key, h in zip(cells_now, now)])
+        before = np.array(
+            [self._heights.get(key, h) for key, h in zip(cells_now, now, strict=True)]
+        )
         self._heights = dict(
             zip(cells_now, now.tolist(), strict=True)
         )  # this sweep's, for the next
