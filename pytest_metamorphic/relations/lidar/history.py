@@ -30,8 +30,8 @@ def history_independence(
     right after itself (the engine runs it twice first, so that a failing case replays
     alike whatever ran before it: see :class:`~pytest_metamorphic.core.cases.Followup`).
     It finds state carried from one call to the next: a ground height or clusters cached
-    per grid cell, a smoothing filter left on, a cache keyed by what two sweeps share (the point count,
-    the header, the leading points). The engine's determinism re-run catches some of this
+    per grid cell, a smoothing filter left on, a cache keyed by what two sweeps share
+    (the point count, the header, the leading points). The engine's determinism re-run catches some of this
     by chance, after a violation of another relation; this relation looks for it by
     design, and its violation is not re-run for determinism (it *is* a re-run).
 
