@@ -26,13 +26,13 @@ def history_independence(
     The follow-up is the source sweep itself, run after 1 to ``max_steps`` earlier sweeps
     made from it (:func:`~pytest_metamorphic.strategies.earlier_sweeps`: turned about the
     sensor, mirrored, cut to its first half), and its output must equal, exactly and for
-    every obstacle (``matcher``: compare by it instead), the output of the source run
-    right after itself (the engine runs it twice first, so that a failing case replays
-    alike whatever ran before it: see :class:`~pytest_metamorphic.core.cases.Followup`).
-    It finds state carried from one call to the next: a ground height or clusters cached
-    per grid cell, a smoothing filter left on, a cache keyed by what two sweeps share
-    (the point count, the header, the leading points). The engine's determinism re-run catches some of this
-    by chance, after a violation of another relation; this relation looks for it by
+    every obstacle (``matcher``: compare by it instead), the output of the source run right
+    after itself (the engine runs it twice first, so that a failing case replays alike
+    whatever ran before it: see :class:`~pytest_metamorphic.core.cases.Followup`). It finds
+    state carried from one call to the next: a ground height or clusters cached per grid
+    cell, a smoothing filter left on, a cache keyed by what two sweeps share (the point
+    count, the header, the leading points). The engine's determinism re-run catches some of
+    this by chance, after a violation of another relation; this relation looks for it by
     design, and its violation is not re-run for determinism (it *is* a re-run).
 
     Precondition: a detector that is per-frame by contract. A tracker, or a detector that
