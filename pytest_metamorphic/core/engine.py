@@ -230,7 +230,7 @@ class _Runner:
                 context = CheckContext(case.source, item.input, item.params, index)
                 verdict = mr.relation.check(compared, output, context)
                 if stats:
-                    _count_tested(stats, mr, case.source, item.input, verdict)
+                    _count_tested(stats, mr, case.source, item, verdict)
                 if not verdict.holds:
                     if not item.before:  # a history's violation is itself a re-run's
                         self._confirm_deterministic(case, source_output, fixtures, mr, stats)
@@ -558,9 +558,10 @@ _NO_HISTORY = object()  # a follow-up without earlier inputs
 
 
 def _count_tested(
-    stats: Any, mr: MetamorphicRelation, source: Any, followup: Any, verdict: Verdict
+    stats: Any, mr: MetamorphicRelation, source: Any, followup: Followup, verdict: Verdict
 ) -> None:
-    """What one follow-up tested: judged elements, an unchanged input, unjudged changes."""
+    """What one follow-up tested: judged elements, an unchanged input (a follow-up with a
+    history changed what ran before it), unjudged changes."""
     if unjudged_changes(verdict):
         stats.unjudged_changes += 1
     judged = judged_count(verdict)
@@ -568,7 +569,7 @@ def _count_tested(
         stats.counted += 1
         stats.judged += judged
         stats.judged_followups += judged > 0
-    if mr.unchanged(source, followup):
+    if not followup.before and mr.unchanged(source, followup.input):
         stats.unchanged += 1
 
 

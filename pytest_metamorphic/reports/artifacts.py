@@ -179,6 +179,10 @@ def _hidden(record: Any) -> list[Any]:
     unmatched elements, else the obstacles without an identical twin."""
     details = record.minimal_verdict.details
     blamed = details.get("blamed") if isinstance(details, Mapping) else None
+    if blamed is None and isinstance(details, Mapping):  # checks joined by &: their parts'
+        parts = [part.get("blamed") for part in details.values() if isinstance(part, Mapping)]
+        found = [index for part in parts if isinstance(part, list) for index in part]
+        blamed = sorted(set(found)) if found else None
     source = record.source_output
     if isinstance(blamed, list) and isinstance(source, Sequence):
         return [source[i] for i in blamed if isinstance(i, int) and 0 <= i < len(source)]
@@ -234,6 +238,17 @@ def _injected_points(value: Any) -> Any:
         if points is not None:
             return points
     return None
+
+
+def _added_points(value: Any) -> Any:
+    """The points a follow-up added, to draw: a perturbation's, or an edit's
+    ``injected_points`` (a moved object's returns where it went), or None."""
+    points = _injected_points(value)
+    for item in value.values() if points is None and isinstance(value, Mapping) else ():
+        points = getattr(item, "injected_points", None)
+        if points is not None:
+            break
+    return points
 
 
 def write_artifact(
@@ -339,7 +354,7 @@ def _fill(
                 hidden=hidden,
                 unjudged=_unjudged(record),
                 scope=str(record.minimal_verdict.details.get("scope", "")),
-                injected=_injected_points(record.followup.params),
+                injected=_added_points(record.followup.params),
                 minimal=minimal_points,
                 title=_picture_title(record) + moved_back,
             )

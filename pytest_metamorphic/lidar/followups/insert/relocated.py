@@ -40,19 +40,18 @@ class RelocatedFound(Relation):
     """The moved object is found where it went, as what the system called it where it
     stood.
 
-    The source obstacle that was the object is the one holding most of its returns (at
-    least half); a system that did not find it there, or an obstacle ``scope`` does not
-    judge, makes no claim to keep. When the moved object has at least ``min_points``
-    returns spanning at least ``min_height_share`` of the height its cast returns
-    spanned, at least ``min_detected`` of them must lie in follow-up obstacles of the
-    source obstacle's class (``classes``, by default also ``"unknown"``; a source
-    ``"unknown"`` accepts any class), and the obstacle holding most of them must stand
-    with its centre within ``center_tolerance`` metres of the footprint of the source
-    obstacle moved by the same motion, headed within ``yaw_tolerance`` degrees of it
-    (modulo 180) when both boxes are at least 2.2 m long and 1.5 times as long as wide
-    (other boxes have no heading to speak of). A turned object's class is not judged:
-    turned, it shows the sensor another outline (a cyclist turned toward it is as short as
-    a pedestrian).
+    The source obstacle that was the object is the one holding most of its returns (at least
+    half); a system that did not find it there, or an obstacle ``scope`` does not judge,
+    makes no claim to keep. When the moved object has at least ``min_points`` returns
+    spanning at least ``min_height_share`` of the height its cast returns spanned, at least
+    ``min_detected`` of them must lie in follow-up obstacles of the source obstacle's class
+    (``classes``, by default also ``"unknown"``; a source ``"unknown"`` accepts any class),
+    and the obstacle holding most of them must stand with its centre within
+    ``center_tolerance`` metres of the footprint of the source obstacle moved by the same
+    motion, headed within ``yaw_tolerance`` degrees of it (modulo 180) when both footprints
+    are elongated (the longer side at least 2.2 m and 1.5 times the shorter; other boxes
+    have no heading to speak of). A turned object's class is not judged: turned, it shows
+    the sensor another outline (a cyclist turned toward it is as short as a pedestrian).
 
     Sizes are not compared: the object is re-sampled at another range or angle, and a
     box fitted to the returns of one face changes length with how many rows reach its far
@@ -121,7 +120,6 @@ class RelocatedFound(Relation):
             found_share=round(found.share, 3),
             found_as_share=round(found.share_as, 3),
             found_as=found.main_label(),
-            blamed=[index],
         )
         what = f"{before.describe()}, moved {relocation.move.describe()} ({len(moved)} returns)"
         if found.share_as < self.min_detected:
@@ -129,13 +127,13 @@ class RelocatedFound(Relation):
                 wrong = [label for label in found.labels if accepted and label not in accepted]
                 return Verdict(
                     False, self.name, f"{what} is found as a {wrong[0]}, not a {before.label}",
-                    details,
+                    {**details, "blamed": [index]},
                 )  # fmt: skip
             return Verdict(
                 False,
                 self.name,
                 f"{what} is not found: {found.share:.0%} of its returns lie in follow-up obstacles",
-                details,
+                {**details, "blamed": [index]},
             )
         holder = _holder(boxes, moved, accepted=accepted, share=0.0)
         assert holder is not None  # share_as > 0: an accepted box holds some of them
@@ -155,7 +153,7 @@ class RelocatedFound(Relation):
                 f"{what} is found {gap:.2f} m outside where it went: {after.describe()}, "
                 f"expected {expected.describe()} ({expected.size[0]:.1f} x "
                 f"{expected.size[1]:.1f} m)",
-                details,
+                {**details, "blamed": [index]},  # a picture marks where it stood
             )
         turn = _heading_gap(after, expected)
         if turn is not None:
@@ -166,7 +164,7 @@ class RelocatedFound(Relation):
                     self.name,
                     f"{what} is found headed {turn:.0f} degrees off: {after.describe()}, "
                     f"expected heading {math.degrees(expected.yaw):.0f} degrees",
-                    details,
+                    {**details, "blamed": [index]},
                 )
         return Verdict(True, self.name, details=details)
 
@@ -204,10 +202,13 @@ def _footprint_gap(found: Box, expected: Box) -> float:
 
 
 def _heading_gap(a: Box, b: Box) -> float | None:
-    """Degrees between the headings of two elongated boxes, modulo 180 (None: either is
-    shorter than 2.2 m or less than 1.5 times as long as wide)."""
+    """Degrees between the headings (``yaw``) of two elongated boxes, modulo 180 (None:
+    either footprint's longer side is under 2.2 m or under 1.5 times the shorter)."""
     for box in (a, b):
-        if box.size[0] < _ELONGATED or box.size[0] < _ASPECT * box.size[1]:
+        # Either side may be the long one: a box reported as 1.8 m long and 4.3 m wide
+        # claims the car drives sideways, and that heading is compared as given.
+        long, short = max(box.size[:2]), min(box.size[:2])
+        if long < _ELONGATED or long < _ASPECT * short:
             return None
     gap = abs(math.remainder(a.yaw - b.yaw, math.pi))
     return math.degrees(gap)

@@ -189,6 +189,11 @@ class RelocateObject:
         """The object's box after the move (the template's, placed)."""
         return self.insertion.box
 
+    @property
+    def injected_points(self) -> NDArray[np.float32]:
+        """(k, 4) float32: the moved returns where the object went (what a picture draws)."""
+        return self.insertion.points
+
     def expected(self, box: Box) -> Box:
         """Where a source obstacle that was this object should be after the move."""
         return moved_box(box, self.motion)
