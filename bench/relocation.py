@@ -19,6 +19,7 @@ returns (what :func:`~pytest_metamorphic.relations.lidar.object_insertion` judge
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import time
 from collections import Counter, defaultdict
@@ -39,7 +40,7 @@ from pytest_metamorphic.lidar.followups.insert.relocation import Movable  # noqa
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region  # noqa: E402
 from pytest_metamorphic.lidar.judging.scope import as_scope  # noqa: E402
-from pytest_metamorphic.lidar.model.sensors import frame_sensor  # noqa: E402
+from pytest_metamorphic.lidar.model.sensors import BeamLayout, frame_sensor  # noqa: E402
 from pytest_metamorphic.relations.lidar import object_relocation  # noqa: E402
 
 PER_KIND = 6
@@ -56,14 +57,11 @@ def detector(name: str) -> Any:
         )
 
         return WholeScenePerception()
+    # Imported by name: the example and the test detector are files, not a package.
     if name == "sklearn":
-        from examples.test_sklearn_detector import SklearnDetector
-
-        return SklearnDetector()
+        return importlib.import_module("examples.test_sklearn_detector").SklearnDetector()
     if name == "ties":
-        from tests.lidar.systems.ties_detector import TiesDetector
-
-        return TiesDetector()
+        return importlib.import_module("tests.lidar.systems.ties_detector").TiesDetector()
     if name == "cnnseg_roi":
         from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation
 
@@ -73,15 +71,22 @@ def detector(name: str) -> Any:
     return mutant(name)
 
 
+def _layout(frame: Any) -> BeamLayout:
+    sensor = frame_sensor(frame).sensor
+    assert isinstance(sensor, BeamLayout), f"{frame!r}: no spinning sensor to re-cast with"
+    return sensor
+
+
 def measure(name: str, frames: dict[str, Any]) -> tuple[int, int]:
     system = detector(name)
     check = object_relocation().relation
     scope = as_scope("roi")
     judged = violations = 0
     margins: dict[str, list[tuple[float, float | None]]] = defaultdict(list)
+    kind: str
     started = time.perf_counter()
     for label, frame in frames.items():
-        layout = frame_sensor(frame).sensor
+        layout = _layout(frame)
         source = system(frame)
         for box in removal_candidates(frame, scope=scope):
             item = Movable.of(frame, box)
@@ -108,7 +113,7 @@ def measure(name: str, frames: dict[str, Any]) -> tuple[int, int]:
                               f"{verdict.explanation[-300:]}")  # fmt: skip
     seconds = time.perf_counter() - started
     print(f"{name}: {judged} moves judged, {violations} violation(s) in {seconds:.0f} s")
-    for kind, values in margins.items():
+    for kind, values in margins.items():  # kind: "range", "bearing" or "turn"
         outside = np.array([v[0] for v in values])
         heading = np.array([v[1] for v in values if v[1] is not None])
         spread = np.round(np.quantile(outside, [0.5, 0.9, 1.0]), 2)
@@ -131,7 +136,7 @@ def insertion_classes(name: str, frames: dict[str, Any]) -> tuple[int, int]:
     system = detector(name)
     tally: Counter[tuple[str, str]] = Counter()
     for frame in frames.values():
-        layout = frame_sensor(frame).sensor
+        layout = _layout(frame)
         for template in object_templates(frame, scope="roi"):
             for place in free_placements(frame, template, layout=layout)[::6]:
                 insertion = InsertObject.onto(frame, template, place, layout=layout)

@@ -10,6 +10,7 @@ reported as having tested nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import weakref
 from collections.abc import Sequence
 from typing import Any
@@ -26,6 +27,12 @@ from pytest_metamorphic.lidar.followups.insert import (
     free_placements,
     object_templates,
 )
+from pytest_metamorphic.lidar.followups.insert.catalogue import (
+    SCALES,
+    fits_class,
+    road_user_templates,
+)
+from pytest_metamorphic.lidar.followups.insert.placement import free_ground
 from pytest_metamorphic.lidar.followups.insert.relocation import (
     MOVE_KINDS,
     Movable,
@@ -82,19 +89,26 @@ def inserted_objects(
     frame: Any,
     *,
     objects: Sequence[ObjectTemplate] | None = None,
+    road_users: bool = True,
+    scales: Sequence[float] = SCALES,
     min_returns: int = 30,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
 ) -> st.SearchStrategy[Followup]:
     """The frame with one of ``objects`` (default: its own cars, pedestrians and cyclists
     of >= ``min_returns`` returns,
-    :func:`~pytest_metamorphic.lidar.followups.insert.object_templates`)
-    put on free ground judged by ``scope``, in clear view, re-cast with ``layout``'s beams
-    (default: the frame's sensor,
+    :func:`~pytest_metamorphic.lidar.followups.insert.object_templates`, and with
+    ``road_users`` the built-in rendered ones of every size, a child to an articulated
+    lorry, :func:`~pytest_metamorphic.lidar.followups.insert.catalogue.road_user_templates`)
+    scaled by one of ``scales`` where the result is a real size of its class
+    (:data:`~pytest_metamorphic.lidar.followups.insert.catalogue.CLASS_SIZES`) and still
+    fits the place, put on free ground judged by ``scope``, in clear view, re-cast with
+    ``layout``'s beams (default: the frame's sensor,
     :func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`)
-    (:class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`). Shrinks toward the first
-    object and the smallest move from where it was seen. Not applicable (and reported so)
-    when there is no object to insert or the frame's sensor is unknown."""
+    (:class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`). Shrinks toward the
+    first object, the smallest move from where it was seen and the first scale (1). Not
+    applicable (and reported so) when there is no object to insert or the frame's sensor
+    is unknown."""
     frame = _check_frame(frame)
     if layout is not None and not isinstance(layout, BeamLayout):
         raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None (the frame's)")
@@ -108,20 +122,28 @@ def inserted_objects(
             raise InvalidArgument("objects is empty: pass None to take the frame's own")
     if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 10:
         raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
+    if not isinstance(road_users, bool):
+        raise InvalidArgument(f"road_users={road_users!r} must be True or False")
+    factors = _scales(scales)
 
     def insertions() -> st.SearchStrategy[Followup]:
         beams = layout if layout is not None else frame_sensor(frame).sensor
         if not isinstance(beams, BeamLayout):
             return st.just(Followup.not_applicable(frame, _no_beams(frame)))
-        key = (templates, min_returns, chosen, id(beams))
+        key = (templates, road_users, min_returns, chosen, id(beams))
 
-        def insert(template: ObjectTemplate, placement: Placement) -> Followup:
+        def insert(template: ObjectTemplate, placement: Placement, factor: float) -> Followup:
+            template, placement = _scaled(frame, template, placement, factor, chosen)
             insertion = InsertObject.onto(frame, template, placement, layout=beams)
             return Followup(insertion.apply(frame), params=insertion.params())
 
         cache = _PLACES.setdefault(frame, {})
         if key not in cache:
-            found = templates or object_templates(frame, min_returns=min_returns, scope=chosen)
+            found = list(
+                templates or object_templates(frame, min_returns=min_returns, scope=chosen)
+            )
+            if road_users and templates is None:
+                found += road_user_templates()
             places = [(t, free_placements(frame, t, scope=chosen, layout=beams)) for t in found]
             cache[key] = [(t, p) for t, p in places if p]
         options = cache[key]
@@ -137,12 +159,39 @@ def inserted_objects(
 
         def place(index: int) -> st.SearchStrategy[Followup]:
             template, places = options[index]
-            return st.sampled_from(places).map(lambda placement: insert(template, placement))
+            return st.tuples(st.sampled_from(places), st.sampled_from(factors)).map(
+                lambda drawn: insert(template, *drawn)
+            )
 
         return st.integers(0, len(options) - 1).flatmap(place)
 
     # Places are searched when the first example is drawn, not when the strategy is made.
     return st.deferred(insertions)
+
+
+def _scales(scales: Sequence[float]) -> tuple[float, ...]:
+    chosen = tuple(scales)
+    if not chosen or not all(
+        isinstance(f, (int, float)) and not isinstance(f, bool) and 0.5 <= f <= 2 for f in chosen
+    ):
+        raise InvalidArgument(f"scales={scales!r} must be factors between 0.5 and 2")
+    return chosen
+
+
+def _scaled(
+    frame: Frame, template: ObjectTemplate, placement: Placement, factor: float, scope: Any
+) -> tuple[ObjectTemplate, Placement]:
+    """``template`` scaled by ``factor`` at ``placement`` when that is a real size of its
+    class and the place still takes it; else the template as it is."""
+    if factor == 1:
+        return template, placement
+    scaled = template.scaled(factor)
+    if not fits_class(scaled.size, scaled.label):
+        return template, placement
+    ground = free_ground(frame, scaled.box_at(placement), scope=scope)
+    if ground is None:
+        return template, placement
+    return scaled, dataclasses.replace(placement, ground_z=ground)
 
 
 def relocated_objects(

@@ -235,7 +235,9 @@ def translation_equivariance(
     if cells:
         # 1, -1, 2, -2, ... cells: shrinks toward one cell forward.
         steps = st.integers(0, 2 * max_cells - 1).map(lambda k: (k // 2 + 1) * (1 - 2 * (k % 2)))
-        moves = steps.map(lambda count: ShiftAlongX(count * cell_size))
+        moves: st.SearchStrategy[ShiftAlongX | ShiftScene] = steps.map(
+            lambda count: ShiftAlongX(count * cell_size)
+        )
         label = name or "cloud and ROI shifted along x by whole cells => O shifted"
     else:
         # Centimetres, not both zero: shrinks toward 1 cm along y, then x.

@@ -20,7 +20,7 @@ from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
 from pytest_metamorphic.lidar.model.obstacles import Box, footprint_distances
 
-__all__ = ["RANGE_FACTORS", "free_placements"]
+__all__ = ["RANGE_FACTORS", "free_ground", "free_placements"]
 
 RANGE_FACTORS = (1.0, 0.9, 1.1, 0.8, 1.25, 1.5)
 """Ranges a template may be placed at, as multiples of the range it was seen from."""
@@ -186,6 +186,17 @@ def free_placements(
         if len(found) == limit:
             break
     return found
+
+
+def free_ground(frame: Frame, box: Box, *, scope: ScopeLike = "roi") -> float | None:
+    """The ground height under ``box`` when it may stand in ``frame`` as
+    :func:`free_placements` requires (free, seen ground, in clear view, judged by
+    ``scope``), else None."""
+    ground = _ground_of(frame)
+    z = ground.ground_under(box)
+    if z is None or not ground.in_clear_view(box) or not as_scope(scope).judged([box], frame)[0]:
+        return None
+    return z
 
 
 @functools.lru_cache(maxsize=8)

@@ -3,6 +3,7 @@ sensor saw them, and where it stands."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -176,6 +177,27 @@ class ObjectTemplate:
         )
         patches = np.stack(corners, axis=1).reshape(-1, 3)
         return np.concatenate([v, patches]), np.concatenate([self.faces, quads])
+
+    def scaled(self, factor: float) -> ObjectTemplate:
+        """The same object ``factor`` times as large in every dimension (semLidarFuzz's
+        scale), about its centre on the ground; its returns, and the patches they stand
+        for, scale with it."""
+        if isinstance(factor, bool) or not isinstance(factor, (int, float)):
+            raise InvalidArgument(f"factor={factor!r} must be a positive number")
+        if not (math.isfinite(factor) and factor > 0):
+            raise InvalidArgument(f"factor={factor!r} must be a positive number")
+        if factor == 1:
+            return self
+        # Patches keep the angular size they had where the object was seen when the
+        # object keeps its range: scale the spacing with it.
+        spacing = (self.spacing[0] * factor, self.spacing[1] * factor)
+        return dataclasses.replace(
+            self,
+            size=(self.size[0] * factor, self.size[1] * factor, self.size[2] * factor),
+            vertices=self.vertices * factor,
+            spacing=spacing,
+            source=f"{self.source} x{factor:g}",
+        )
 
     @property
     def origin(self) -> str:

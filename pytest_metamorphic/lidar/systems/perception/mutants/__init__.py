@@ -50,8 +50,10 @@ view_yaw_correction         boxes lying across the line of sight turned to lie a
                             (Autoware shape estimation's end-on correction, pull request #11309)
 sparse_heading_flip         car boxes of < 80 returns extended to a default size from the
                             wrong edge: turned 90 degrees (pull request #11634's mechanism)
-temporal_ground             ground heights kept per 2 m cell from sweep to sweep and blended
-                            (an elevation map's smoothing left on in a per-frame detector)
+temporal_ground             ground heights of each 2 m cell averaged with the previous sweep's
+                            (a smoothing left on in a per-frame detector)
+long_cluster_filter         obstacles longer than 10 m dropped as walls (a size cap that also
+                            drops buses and trailers: autoware_universe pull request #12738)
 ==========================  =================================================================
 """
 
@@ -90,6 +92,7 @@ from pytest_metamorphic.lidar.systems.perception.mutants.objects import (
     CountScaledRadius,
     DenseMinPoints,
     GridAnchoredAtSweep,
+    LongClusterFilter,
     NearestObjectList,
     RawPointCount,
     RoadUserContext,
@@ -134,6 +137,7 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         ViewYawCorrection,
         SparseHeadingFlip,
         TemporalGround,
+        LongClusterFilter,
     )
 }
 

@@ -27,6 +27,7 @@ __all__ = [
     "CountScaledRadius",
     "DenseMinPoints",
     "GridAnchoredAtSweep",
+    "LongClusterFilter",
     "NearestObjectList",
     "RawPointCount",
     "RoadUserContext",
@@ -266,3 +267,24 @@ def _bearing_near(box: Box, edges: NDArray[np.float64], margin: float) -> bool:
     offsets = (offsets + 180.0) % 360.0 - 180.0
     relative = (edges - centre + 180.0) % 360.0 - 180.0
     return bool(((relative >= offsets.min() - margin) & (relative <= offsets.max() + margin)).any())
+
+
+class LongClusterFilter(ReferencePerception):
+    """Obstacles longer than ``max_length`` metres dropped as walls, fences or kerbs.
+
+    Clusters of building facades and fences are long; a size cap meant for them also
+    silently drops the longest road users, as Autoware's clustering dropped clusters over
+    its size cap ("losing every point in large connected components, e.g. long trailers":
+    autoware_universe pull request #12738, autoware_core issue #1379). Every recorded car
+    is shorter; a bus (12 m) or an articulated lorry (16.5 m) is not, and only an inserted
+    one shows it.
+    """
+
+    name = "long_cluster_filter"
+    max_length = 10.0
+
+    def build_boxes(
+        self, points: NDArray[np.float32], ground_z: NDArray[np.float32], clusters: Clusters
+    ) -> list[Box]:
+        boxes = super().build_boxes(points, ground_z, clusters)
+        return [box for box in boxes if box.size[0] <= self.max_length]

@@ -1,0 +1,85 @@
+"""Built-in objects to insert: rendered road users of every size class, and real class sizes.
+
+A recording's own labels give templates of what drove by that day: KITTI's six sweeps hold
+cars, a few pedestrians and one cyclist, and no bus. :func:`road_user_templates` renders
+the sizes a perception stack must also handle (semLidarFuzz's and MultiTest's point: a
+detector tuned on cars meets vans, lorries, buses, articulated trailers, children) on an
+empty road with an HDL-64E and cuts them as templates; insertion re-casts them for each
+target frame's sensor, like any other template. :data:`CLASS_SIZES` bounds scaling
+(:meth:`~pytest_metamorphic.lidar.followups.insert.ObjectTemplate.scaled`) to real sizes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+from pytest_metamorphic.lidar.followups.insert.template import ObjectTemplate, object_templates
+from pytest_metamorphic.lidar.model.obstacles import Box, Label
+from pytest_metamorphic.lidar.roi import ROI
+
+__all__ = ["CLASS_SIZES", "ROAD_USERS", "SCALES", "fits_class", "road_user_templates"]
+
+SCALES = (1.0, 1.05, 0.95, 1.1, 0.9)
+"""Scales an inserted object may take (semLidarFuzz scales vehicles by 105 %), first the
+object as it is: shrinking goes there."""
+
+CLASS_SIZES: dict[str, tuple[tuple[float, float], tuple[float, float], tuple[float, float]]] = {
+    # (length, width, height) ranges in metres. "car" is KITTI's vehicle class: Car, Van,
+    # Truck and Tram, from a small city car to an EU articulated lorry (18.75 m, 2.55 m
+    # wide, 4 m high).
+    "car": ((2.5, 18.75), (1.4, 2.6), (1.2, 4.2)),
+    # Children to tall adults, with or without a bag.
+    "pedestrian": ((0.2, 1.2), (0.2, 1.0), (1.0, 2.1)),
+    # Bicycles and their riders, a child's to a cargo bike's.
+    "cyclist": ((1.2, 2.6), (0.4, 1.0), (1.1, 2.1)),
+}
+"""Real sizes per class: a scaled template must stay within them."""
+
+# Name, box (centre on flat ground 1.73 m below the sensor, size, heading), label, shape.
+# Spread over the road so that none hides another from the sensor.
+ROAD_USERS: tuple[tuple[str, tuple[float, float], tuple[float, float, float], float, str], ...] = (
+    ("van", (14.0, 6.0), (5.2, 2.0, 2.3), 0.1, "car"),
+    ("lorry", (22.0, -7.0), (8.5, 2.5, 3.5), -0.05, "car"),
+    ("bus", (30.0, 8.0), (12.0, 2.55, 3.2), 0.0, "car"),
+    ("articulated lorry", (36.0, -10.0), (16.5, 2.55, 4.0), 0.05, "car"),
+    ("small car", (9.0, -4.0), (3.6, 1.6, 1.45), 0.4, "car"),
+    ("child", (7.0, 3.0), (0.4, 0.35, 1.15), 0.0, "pedestrian"),
+)
+"""The rendered road users: name, (x, y), (length, width, height), heading, class."""
+
+
+def fits_class(size: tuple[float, float, float], label: Label) -> bool:
+    """Whether a box of ``size`` is a real size for ``label`` (:data:`CLASS_SIZES`;
+    ``unknown`` objects have no class size and always fit)."""
+    bounds = CLASS_SIZES.get(label)
+    if bounds is None:
+        return True
+    return all(low <= value <= high for value, (low, high) in zip(size, bounds, strict=True))
+
+
+@functools.cache
+def road_user_templates() -> tuple[ObjectTemplate, ...]:
+    """Templates of :data:`ROAD_USERS`, rendered with the HDL-64E on an empty road (one
+    sweep, seed 0; cut as any labelled object is, :func:`object_templates`), nearest
+    first. Each keeps its name in its source (``road users#0 [bus]``)."""
+    from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
+
+    ground = -1.73
+    obstacles = tuple(
+        Obstacle(
+            Box((x, y, ground + size[2] / 2), size, yaw, label),  # type: ignore[arg-type]
+            shape="box" if size[0] > 6 else "auto",
+        )
+        for _, (x, y), size, yaw, label in ROAD_USERS
+    )
+    road = ROI.from_polygons([[(-5.0, -20.0), (60.0, -20.0), (60.0, 20.0), (-5.0, 20.0)]])
+    frame = render(Scene(roi=road, obstacles=obstacles, name="road users"))
+    named = []
+    for template in object_templates(frame, min_returns=30):
+        x = template.range * math.cos(template.bearing)
+        y = template.range * math.sin(template.bearing)
+        name = min(ROAD_USERS, key=lambda user: math.dist(user[1], (x, y)))[0]
+        named.append(dataclasses.replace(template, source=f"road users#0 [{name}]"))
+    return tuple(named)
