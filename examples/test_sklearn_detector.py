@@ -167,7 +167,7 @@ def test_a_dead_laser_moves_the_ransac_plane_and_loses_a_pedestrian() -> None:
 @needs_kitti
 def test_an_inserted_car_beyond_the_detectors_range_cap_is_not_detected() -> None:
     """The labelled car of KITTI sweep 1 seen at 70 m, put on free ground at 56 m (80 %
-    of its range): its 114 returns are in the sweep, but the detector crops everything
+    of its range): its 132 returns are in the sweep, but the detector crops everything
     beyond 40 m. No relation that moves, drops or adds noise can show a range cap (the
     car was never reported in any run); an inserted object can."""
     frame = FrameCatalog(str(KITTI), roi=kitti_label_region()).load(1)  # with its labels
@@ -181,7 +181,7 @@ def test_an_inserted_car_beyond_the_detectors_range_cap_is_not_detected() -> Non
     )
     assert not verdict.holds
     # The message says what it knows: a labelled KITTI car, from which sweep.
-    assert "the inserted car at (55.8, -0.4) (114 returns, a labelled car from " in (
+    assert "the inserted car at (55.8, -0.4) (132 returns, a labelled car from " in (
         verdict.explanation
     )
 

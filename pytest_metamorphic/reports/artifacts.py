@@ -27,10 +27,9 @@ import math
 import os
 import re
 import shutil
-import textwrap
 import uuid
 import zlib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +44,12 @@ from pytest_metamorphic.reports.inputs import (
     decode_input,
     encode_input,
     is_box,
+)
+from pytest_metamorphic.reports.violation_picture import (
+    _hidden,
+    _injected_points,
+    _picture_title,
+    draw_violation,
 )
 
 __all__ = [
@@ -173,42 +178,6 @@ def _boxes_or_none(value: Any) -> list[Any] | None:
     return None
 
 
-def _hidden(record: Any) -> list[Any]:
-    """What the violation lost: the source obstacles the relation blames (``blamed`` in its
-    details: a turned or mirrored obstacle without its match, one a fault lost), else its
-    unmatched elements, else the obstacles without an identical twin."""
-    details = record.minimal_verdict.details
-    blamed = details.get("blamed") if isinstance(details, Mapping) else None
-    if blamed is None and isinstance(details, Mapping):  # checks joined by &: their parts'
-        parts = [part.get("blamed") for part in details.values() if isinstance(part, Mapping)]
-        found = [index for part in parts if isinstance(part, list) for index in part]
-        blamed = sorted(set(found)) if found else None
-    source = record.source_output
-    if isinstance(blamed, list) and isinstance(source, Sequence):
-        return [source[i] for i in blamed if isinstance(i, int) and 0 <= i < len(source)]
-    unmatched = details.get("unmatched") if isinstance(details, Mapping) else None
-    if isinstance(unmatched, list) and record.minimal_verdict.relation.startswith("subset"):
-        source = record.source_output
-        return [source[i] for i in unmatched if isinstance(i, int) and i < len(source)]
-    source_boxes = _boxes_or_none(record.source_output)
-    followup_boxes = _boxes_or_none(record.minimal_output)
-    if source_boxes is not None and followup_boxes is not None:
-        from pytest_metamorphic.lidar.followups.minimize import lost_obstacles
-
-        return [source_boxes[i] for i in lost_obstacles(source_boxes, followup_boxes)]
-    return []
-
-
-def _unjudged(record: Any) -> list[Any]:
-    """Source obstacles outside the relation's scope (drawn as not judged)."""
-    details = record.minimal_verdict.details
-    indices = details.get("unjudged_source") if isinstance(details, Mapping) else None
-    source = record.source_output
-    if not isinstance(indices, list):
-        return []
-    return [source[i] for i in indices if isinstance(i, int) and i < len(source)]
-
-
 def _minimization_json(record: Any) -> dict[str, Any] | None:
     reduction = record.reduction
     if reduction is None:
@@ -229,26 +198,6 @@ def _minimization_json(record: Any) -> dict[str, Any] | None:
         "summary": reduction.summary(),
         "perturbation": perturbation,
     }
-
-
-def _injected_points(value: Any) -> Any:
-    """(n, 4) points of a point perturbation in ``params``, or None."""
-    for item in value.values() if isinstance(value, Mapping) else ():
-        points = getattr(as_reducible(item), "points", None)
-        if points is not None:
-            return points
-    return None
-
-
-def _added_points(value: Any) -> Any:
-    """The points a follow-up added, to draw: a perturbation's, or an edit's
-    ``injected_points`` (a moved object's returns where it went), or None."""
-    points = _injected_points(value)
-    for item in value.values() if points is None and isinstance(value, Mapping) else ():
-        points = getattr(item, "injected_points", None)
-        if points is not None:
-            break
-    return points
 
 
 def write_artifact(
@@ -334,31 +283,7 @@ def _fill(
         minimal_cloud = PointCloud(minimal_points, name="minimal perturbation")
         write_pcd(minimal_cloud, folder / "perturbation.pcd")
     hidden = _hidden(record)
-    picture, picture_note = None, ""
-    source_boxes = _boxes_or_none(record.source_output)
-    followup_boxes = _boxes_or_none(record.minimal_output)
-    moved_back = ""
-    if followup_boxes is not None:
-        followup_boxes, moved_back = _in_source_frame(followup_boxes, followup.params)
-    if source_spec["kind"] == "frame" and source_boxes is not None and followup_boxes is not None:
-        try:
-            from pytest_metamorphic.reports.birdseye import draw_birdseye
-        except ImportError as error:  # matplotlib is an optional extra
-            picture_note = f"no picture: {error}"
-        else:
-            draw_birdseye(
-                folder / "birdseye.png",
-                source=record.source,
-                source_boxes=source_boxes,
-                followup_boxes=followup_boxes,
-                hidden=hidden,
-                unjudged=_unjudged(record),
-                scope=str(record.minimal_verdict.details.get("scope", "")),
-                injected=_added_points(record.followup.params),
-                minimal=minimal_points,
-                title=_picture_title(record) + moved_back,
-            )
-            picture = "birdseye.png"
+    picture, picture_note = draw_violation(record, folder, source_spec)
     aeb = None
     if source_spec["kind"] == "aeb_scenario" and followup_spec["kind"] == "aeb_scenario":
         from pytest_metamorphic.reports.aeb_artifacts import write_aeb_files
@@ -414,56 +339,6 @@ def _fill(
     document["files"] = [*files, RECORD]
     with (folder / RECORD).open("w", encoding="utf-8") as handle:
         json.dump(document, handle, indent=1, allow_nan=False)
-
-
-def _in_source_frame(boxes: list[Any], params: Mapping[str, Any]) -> tuple[list[Any], str]:
-    """A rigid-motion follow-up's boxes moved back where the source's would be (the picture
-    draws both over the source's cloud), and a title line saying so; other boxes as they
-    are. Without this, every source obstacle of a turned sweep looked lost."""
-    movable = all(hasattr(box, name) for box in boxes for name in ("rotated", "mirrored"))
-    if not isinstance(params, Mapping) or not movable:  # a user's own box type: as it is
-        return boxes, ""
-    if "theta_deg" in params:
-        degrees = float(params["theta_deg"])
-        turn = math.radians(-degrees)
-        return [box.rotated(turn) for box in boxes], (
-            f"\nfollow-up obstacles turned back by {degrees:g} degrees"
-        )
-    if "mirrored" in params:
-        return [box.mirrored() for box in boxes], "\nfollow-up obstacles mirrored back"
-    if "shift_x_m" in params:
-        dx = float(params["shift_x_m"])
-        return [box.translated(-dx, 0.0) for box in boxes], (
-            f"\nfollow-up obstacles shifted back by {dx:g} m"
-        )
-    return boxes, ""
-
-
-_TITLE_WIDTH = 110
-_TITLE_LINES = 2
-
-
-def _picture_title(record: Any) -> str:
-    reduction = record.reduction
-    # Two lines of the verdict, cut at a word with a mark: a hard cut at 110 characters
-    # left titles like "the inserted car at (-2." that named nothing.
-    first_line = (record.minimal_verdict.explanation or "").split("\n", 1)[0]
-    wrapped = textwrap.wrap(first_line, _TITLE_WIDTH)
-    if len(wrapped) > _TITLE_LINES:
-        wrapped = [
-            *wrapped[: _TITLE_LINES - 1],
-            textwrap.shorten(
-                " ".join(wrapped[_TITLE_LINES - 1 :]), _TITLE_WIDTH, placeholder=" ..."
-            ),
-        ]
-    lines = [f"{record.relation}", *wrapped]
-    if reduction is not None:
-        proof = "proven 1-minimal" if reduction.proven_minimal else "NOT proven minimal"
-        lines.append(
-            f"{reduction.size} of {reduction.original_size} {reduction.key} elements, {proof}, "
-            f"{reduction.calls} SUT calls"
-        )
-    return "\n".join(lines)
 
 
 class ArtifactWriter:

@@ -3,6 +3,7 @@ rendered frames, the relations catch the faults they target, bad arguments are n
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -21,7 +22,7 @@ from pytest_metamorphic.lidar.followups.perturb import (
     PermutePoints,
     RotateAboutSensor,
 )
-from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX, ShiftAlongX
+from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX, ShiftAlongX, ShiftScene
 from pytest_metamorphic.lidar.io import read_bin
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.model.frame import Frame
@@ -373,6 +374,30 @@ def test_a_shift_along_x_moves_points_roi_and_boxes_and_the_reference_follows_on
     with pytest.raises(InvalidArgument, match="cell_size"):
         translation_equivariance(cell_size=0)
     assert translation_equivariance().name not in {r.name for r in lidar_relations()}
+
+
+def test_a_shift_by_any_amount_moves_everything_and_is_opt_in() -> None:
+    """``shifts="any"``: points, ROI and boxes move by (dx, dy); the reference, which
+    treats a rendered street's objects the same wherever they are, follows (loose
+    tolerances); the relation is not in the default set (docs/soundness.md says why)."""
+    frame = street()
+    move = ShiftScene(0.37, -1.23)
+    shifted = move.apply(frame)
+    assert np.allclose(shifted.cloud.xyz[:, :2], frame.cloud.xyz[:, :2] + (0.37, -1.23), atol=1e-5)
+    assert shifted.boxes[0].center[1] == pytest.approx(frame.boxes[0].center[1] - 1.23)
+    relation = translation_equivariance(shifts="any").relation
+    context = CheckContext(frame, shifted, move.params(), 0)
+    assert relation.check(SUT(frame), SUT(shifted), context).holds
+    turned = [dataclasses.replace(b, yaw=b.yaw + 0.6) for b in SUT(shifted)]
+    assert not relation.check(SUT(frame), turned, context).holds
+    names = {r.name for r in lidar_relations()}
+    assert translation_equivariance(shifts="any").name not in names
+    with pytest.raises(InvalidArgument, match="shifts"):
+        translation_equivariance(shifts="some")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="max_shift"):
+        translation_equivariance(shifts="any", max_shift=0)
+    with pytest.raises(InvalidArgument, match="dy"):
+        ShiftScene(1.0, math.inf)
 
 
 def test_equal_outputs_ignore_list_order_and_rounding() -> None:

@@ -143,7 +143,7 @@ def test_replaying_a_bad_record_is_a_usage_error_not_an_internal_error(
 def test_picture_titles_cut_the_verdict_at_a_word_and_say_so() -> None:
     from types import SimpleNamespace
 
-    from pytest_metamorphic.reports.artifacts import _picture_title
+    from pytest_metamorphic.reports.violation_picture import _picture_title
 
     blame = (
         "inserted object detected (>= 30 returns: >= 50% of them in obstacles; wholly in "
@@ -176,7 +176,7 @@ def test_pictures_mark_only_the_obstacles_the_relation_blames() -> None:
     from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX
     from pytest_metamorphic.lidar.systems.perception import ReferencePerception
     from pytest_metamorphic.relations.lidar import mirror_symmetry
-    from pytest_metamorphic.reports.artifacts import _hidden, _unjudged
+    from pytest_metamorphic.reports.violation_picture import _hidden, _unjudged
     from tests.core.lidar_cases import street
 
     frame = street()
@@ -207,7 +207,7 @@ def test_pictures_draw_a_moved_follow_up_back_in_the_source_frame() -> None:
     from pytest_metamorphic.lidar.followups.perturb import RotateAboutSensor
     from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX
     from pytest_metamorphic.lidar.systems.perception import ReferencePerception
-    from pytest_metamorphic.reports.artifacts import _in_source_frame
+    from pytest_metamorphic.reports.violation_picture import _in_source_frame
     from tests.core.lidar_cases import street
 
     frame = street()

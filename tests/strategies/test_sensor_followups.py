@@ -50,11 +50,18 @@ def test_dead_beams_and_lost_packets_are_the_recording_sensors(key: str) -> None
     check()
 
 
-def test_an_unlabelled_sweep_has_nothing_to_insert_and_says_so() -> None:
+def test_an_unlabelled_sweep_gets_the_built_in_road_users_or_says_why_not() -> None:
+    """A recording without labels has no objects of its own to insert: the built-in
+    rendered road users are offered (re-cast for its VLP-32C); without them, the strategy
+    says there is nothing to insert."""
     parts, _ = RECORDINGS["vlp32c"]
     frame = FrameCatalog(shared_data_path(*parts), roi=corridor_roi())[0]
-    inserted = find(mst.inserted_objects(frame), lambda f: True, settings=SEARCH)
-    assert inserted.skipped is not None and "no object to insert" in inserted.skipped
+    bare = find(mst.inserted_objects(frame, road_users=False), lambda f: True, settings=SEARCH)
+    assert bare.skipped is not None and "no object to insert" in bare.skipped
+    offered = find(mst.inserted_objects(frame), lambda f: True, settings=SEARCH)
+    # In this yard's 7 m corridor only the smallest fits: the child, 6.9 m away.
+    assert offered.skipped is None
+    assert offered.params["insert_object"].template.source == "road users#0 [child]"
 
 
 def test_a_sensor_without_rings_gets_no_dead_beams() -> None:

@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import conftest
 from pytest_metamorphic import InvalidArgument, MetamorphicViolation, metamorphic
+from pytest_metamorphic import strategies as mst
 from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.lidar.followups.edit import OthersKept, removal_candidates
 from pytest_metamorphic.lidar.followups.insert import (
@@ -24,6 +26,7 @@ from pytest_metamorphic.lidar.followups.insert import (
     Placement,
     free_placements,
 )
+from pytest_metamorphic.lidar.followups.insert.catalogue import fits_class, road_user_templates
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
@@ -276,3 +279,67 @@ def test_a_reduced_insertion_is_judged_only_while_it_spans_the_objects_height() 
     assert again.span == lowest.span
     with pytest.raises(InvalidArgument, match="min_height_share"):
         InsertedDetected(min_height_share=1.5)
+
+
+def test_an_inserted_pedestrian_reported_as_a_car_is_a_violation() -> None:
+    """The class is judged: before, any label passed. KITTI sweep 0's pedestrian, put back
+    where it was seen, reported as a car by a detector that calls everything a car."""
+    frame = labelled_kitti(0)
+    template = object_templates(frame)[0]
+    assert template.label == "pedestrian"
+    insertion = InsertObject.onto(frame, template, free_placements(frame, template, limit=1)[0])
+    followup = insertion.apply(frame)
+    context = CheckContext(frame, followup, insertion.params(), 0)
+    reference = ReferencePerception()
+
+    def as_cars(boxes: list[Any]) -> list[Any]:
+        return [dataclasses.replace(box, label="car") for box in boxes]
+
+    check = InsertedDetected()
+    assert check.check(reference(frame), reference(followup), context).holds
+    verdict = check.check(reference(frame), as_cars(reference(followup)), context)
+    assert not verdict.holds and "is found as a car, not a pedestrian" in verdict.explanation
+    as_unknown = [dataclasses.replace(b, label="unknown") for b in reference(followup)]
+    assert check.check([], as_unknown, context).holds  # not called anything else
+    assert not InsertedDetected(classes="own").check([], as_unknown, context).holds
+    assert InsertedDetected(classes="any").check([], as_cars(reference(followup)), context).holds
+    with pytest.raises(InvalidArgument, match="classes="):
+        InsertedDetected(classes="some")  # type: ignore[arg-type]
+
+
+def test_scaled_templates_keep_real_class_sizes_and_road_users_come_in_every_size() -> None:
+    template = _car_template()
+    bigger = template.scaled(1.1)
+    assert bigger.size == pytest.approx(tuple(1.1 * v for v in template.size))
+    assert np.allclose(bigger.vertices, 1.1 * template.vertices)
+    assert bigger.label == template.label and bigger.source.endswith("x1.1")
+    assert template.scaled(1) is template
+    assert fits_class(template.size, "car") and not fits_class((25.0, 2.5, 4.0), "car")
+    assert fits_class((0.6, 0.5, 1.7), "pedestrian")
+    assert not fits_class((0.6, 0.5, 2.4), "pedestrian")
+    with pytest.raises(InvalidArgument, match="factor"):
+        template.scaled(0)
+    users = {t.source.split("[")[1].rstrip("]"): t for t in road_user_templates()}
+    assert {"bus", "lorry", "van", "child"} <= set(users)
+    assert users["bus"].size[0] == 12.0 and users["child"].label == "pedestrian"
+    assert all(fits_class(t.size, t.label) for t in users.values())
+
+
+def test_insertion_draws_road_users_and_scales_without_labels_of_its_own() -> None:
+    """An unlabelled sweep still gets objects to insert (the built-in road users), and a
+    drawn scale is used where the object keeps a real size and still fits its place."""
+    frame = dataclasses.replace(labelled_kitti(2), boxes=())
+    seen: set[str] = set()
+    scaled = 0
+
+    @settings(max_examples=30, derandomize=True, database=None, deadline=None,
+              suppress_health_check=list(HealthCheck))  # fmt: skip
+    @given(mst.inserted_objects(frame))
+    def draw(followup: Any) -> None:
+        nonlocal scaled
+        template = followup.params["insert_object"].template
+        seen.add(template.source.split("[")[-1].split("]")[0])
+        scaled += " x" in template.source
+
+    draw()
+    assert len(seen) >= 3 and scaled > 0

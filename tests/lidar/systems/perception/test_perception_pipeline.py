@@ -270,3 +270,37 @@ def test_classification_rules() -> None:
     assert labels == ["car", "pedestrian", "cyclist", "car", "unknown", "unknown"]
     no_cars = ClassifierParams(car=())
     assert classify(shape, no_cars)[0] == "unknown"
+
+
+def test_a_cars_rear_and_a_cyclist_are_told_apart_by_the_crown() -> None:
+    """Same footprint and height (1.45 x 0.45 x 1.30 m): a car's roof edge reaches along
+    its rear (crown 1.2 m), a rider's head and shoulders do not (0.45 m). Without a crown
+    measured the rule is not checked, and the car rule, tried first, takes both."""
+    common = {
+        "length": np.array([1.45, 1.45]),
+        "width": np.array([0.45, 0.45]),
+        "height": np.array([1.3, 1.3]),
+        "top": np.array([1.6, 1.6]),
+        "bottom": np.array([0.3, 0.3]),
+    }
+    assert classify(ObjectShape(**common, crown=np.array([1.2, 0.45]))) == ["car", "cyclist"]
+    assert classify(ObjectShape(**common)) == ["car", "car"]
+
+
+def test_the_reference_measures_each_objects_crown_along_its_box() -> None:
+    # A 1.5 m bar 1.6 m up on posts: its crown is the bar's length.
+    posts = [(10.0, y, z) for y in (-0.75, 0.75) for z in np.arange(-1.5, -0.2, 0.1)]
+    bar = [(10.0, y, -0.15) for y in np.arange(-0.75, 0.76, 0.05)]
+    ground = [(x, y, -1.73) for x in np.arange(7.0, 13.0, 0.2) for y in np.arange(-3, 3, 0.2)]
+    cloud = np.array(posts + bar + ground, dtype=np.float32)
+    cloud = np.column_stack([cloud, np.full(len(cloud), 0.5, np.float32)])
+    features: list[ObjectShape] = []
+
+    class Spy(ReferencePerception):
+        def classify(self, shape: ObjectShape) -> list[str]:
+            features.append(shape)
+            return super().classify(shape)
+
+    Spy()(cloud)
+    assert features and features[0].crown is not None
+    assert features[0].crown.max() == pytest.approx(1.5, abs=0.1)
