@@ -187,11 +187,13 @@ def test_relocation_is_sound_on_the_reference_and_finds_a_sparse_heading_flip() 
         return REFERENCE(frame)
 
     reference()
+    # KITTI sweep 2's car 34.8 m away has 83 returns: moved 4 degrees aside, it has fewer
+    # than 80 and the mutant turns its box.
     faulty = mutant("sparse_heading_flip")
 
     @settings(max_examples=60, derandomize=True, database=None, deadline=None,
               suppress_health_check=list(HealthCheck))  # fmt: skip
-    @metamorphic(source=frames, relations=[object_relocation()])
+    @metamorphic(source=st.just(labelled_kitti(2)), relations=[object_relocation()])
     def flipped(frame):  # type: ignore[no-untyped-def]
         return faulty(frame)
 
