@@ -15,6 +15,7 @@ from pytest_metamorphic.lidar.followups.insert import (
     ObjectTemplate,
     object_templates,
 )
+from pytest_metamorphic.lidar.followups.insert.catalogue import SCALES
 from pytest_metamorphic.lidar.followups.insert.relocated import RelocatedFound
 from pytest_metamorphic.lidar.followups.insert.relocation import MOVE_KINDS, MoveKind
 from pytest_metamorphic.lidar.judging.found import ClassRule
@@ -72,6 +73,8 @@ def object_removal(
 def object_insertion(
     *,
     objects: Sequence[ObjectTemplate] | None = None,
+    road_users: bool = True,
+    scales: Sequence[float] = SCALES,
     clearance: float = 5.0,
     min_points: int = 30,
     min_detected: float = 0.5,
@@ -86,18 +89,21 @@ def object_insertion(
 
     The follow-up takes one of ``objects`` (:func:`object_templates`, e.g. from labelled
     KITTI sweeps or a rendered scene; default: the source frame's own cars, pedestrians
-    and cyclists) and places it (:func:`~pytest_metamorphic.strategies.inserted_objects`)
+    and cyclists and, with ``road_users``, the built-in rendered road users of every size,
+    a child to a 16.5 m articulated lorry), scaled by one of ``scales`` where it keeps a
+    real size of its class, and places it (:func:`~pytest_metamorphic.strategies.inserted_objects`)
     with :class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`: on free ground judged by
     ``scope`` and in clear view
     (:func:`~pytest_metamorphic.lidar.followups.insert.free_placements`),
     re-projected onto ``layout``'s beams (default: the frame's sensor), hiding what it
     stands in front of. Shrinking goes toward the first object and the smallest move from
     where it was seen; a violation reduces to the fewest inserted returns that still fail.
-    An unlabelled recording has no objects of its own: pass ``objects`` (templates cut
-    from any labelled recording or rendered scene, :func:`object_templates`, or a saved
-    library, :func:`~pytest_metamorphic.lidar.followups.insert.load_templates`; they are
-    re-cast for the frame's sensor); without them, or when the frame's sensor is unknown,
-    the relation is reported as having tested nothing.
+    An unlabelled recording has no objects of its own: the built-in road users are
+    inserted, or pass ``objects`` (templates cut from any labelled recording or rendered
+    scene, :func:`object_templates`, or a saved library,
+    :func:`~pytest_metamorphic.lidar.followups.insert.load_templates`; they are re-cast for
+    the frame's sensor); when the frame's sensor is unknown the relation is reported as
+    having tested nothing.
 
     The check is :class:`~pytest_metamorphic.lidar.followups.insert.InsertedDetected` (an inserted
     object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
@@ -120,12 +126,14 @@ def object_insertion(
         min_points=min_points, min_detected=min_detected, classes=classes, scope=scope
     )
     relation = check & OthersKept(clearance=clearance, matcher=matcher, scope=scope)
-    inserted_objects(_PROBE, objects=objects, min_returns=min_points, layout=layout)
+    options: dict[str, Any] = {
+        "objects": objects, "road_users": road_users, "scales": scales,
+        "min_returns": min_points, "layout": layout,
+    }  # fmt: skip
+    inserted_objects(_PROBE, **options)  # validate now
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
-        return inserted_objects(
-            _frame(frame), objects=objects, min_returns=min_points, layout=layout, scope=scope
-        )
+        return inserted_objects(_frame(frame), scope=scope, **options)
 
     return lidar_relation(name, followup, relation)
 

@@ -26,11 +26,18 @@ inserted returns that still fail. :class:`InsertedDetected` checks that the inse
 object is found, :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` that nothing else is
 lost.
 
-For recordings without labels, templates come from elsewhere: cut them from any labelled
-recording or rendered scene (:func:`object_templates`), keep them as a library
-(:func:`save_templates`, :func:`load_templates`) and pass them as ``objects=``; they are
+Besides a recording's own labels, insertion draws the built-in rendered road users of
+every size class, a child to an articulated lorry
+(:func:`~pytest_metamorphic.lidar.followups.insert.catalogue.road_user_templates`), and
+scales templates within real class sizes
+(:data:`~pytest_metamorphic.lidar.followups.insert.catalogue.CLASS_SIZES`): a recording
+without labels still gets objects to insert. Templates of your own come from any
+labelled recording or rendered scene (:func:`object_templates`), kept as a library
+(:func:`save_templates`, :func:`load_templates`) and passed as ``objects=``; they are
 re-cast for each target frame's sensor
 (:func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`).
+:mod:`.relocation` moves an object within its own sweep (removed where it stood, re-cast
+where it goes), :class:`~.relocated.RelocatedFound` judges it.
 """
 
 from pytest_metamorphic.lidar.followups.insert.check import InsertedDetected

@@ -17,10 +17,41 @@ from pytest_metamorphic.lidar.judging.found import (
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.obstacles import as_boxes
 
-__all__ = ["InsertedDetected"]
+__all__ = ["InsertedDetected", "PlacedObjectCheck"]
 
 
-class InsertedDetected(Relation):
+class PlacedObjectCheck(Relation):
+    """What the checks of an object put into a sweep share: how many of its returns make
+    it judged (``min_points``, spanning ``min_height_share`` of the height all its cast
+    returns spanned), how many must be found (``min_detected``), as which classes
+    (``classes``), and which objects are judged (``scope``)."""
+
+    def __init__(
+        self,
+        *,
+        min_points: int = 30,
+        min_detected: float = 0.5,
+        min_height_share: float = 0.8,
+        classes: ClassRule = "own_or_unknown",
+        scope: ScopeLike = "roi",
+    ) -> None:
+        if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
+            raise InvalidArgument(f"min_points={min_points!r} must be a positive int")
+        self.min_points = min_points
+        self.min_detected = _fraction(min_detected, "min_detected")
+        self.min_height_share = _fraction(min_height_share, "min_height_share")
+        self.classes = check_class_rule(classes)
+        self.scope: ObstacleScope = as_scope(scope)
+
+    def spans(self, insertion: InsertObject) -> tuple[float, bool]:
+        """How high the placed returns reach (m), and whether that is enough of the
+        object's height to judge it (a reduction may not end on a slice of it)."""
+        z = insertion.points[:, 2]
+        span = float(z.max() - z.min()) if len(z) else 0.0
+        return span, not insertion.span or span >= self.min_height_share * insertion.span
+
+
+class InsertedDetected(PlacedObjectCheck):
     """The inserted object is detected with its class: when it has at least
     ``min_points`` returns that span at least ``min_height_share`` of the height all its
     cast returns spanned, and ``scope`` judges it, at least ``min_detected`` of its
@@ -45,13 +76,10 @@ class InsertedDetected(Relation):
         classes: ClassRule = "own_or_unknown",
         scope: ScopeLike = "roi",
     ) -> None:
-        if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
-            raise InvalidArgument(f"min_points={min_points!r} must be a positive int")
-        self.min_points = min_points
-        self.min_detected = _fraction(min_detected, "min_detected")
-        self.min_height_share = _fraction(min_height_share, "min_height_share")
-        self.classes = check_class_rule(classes)
-        self.scope: ObstacleScope = as_scope(scope)
+        super().__init__(
+            min_points=min_points, min_detected=min_detected, min_height_share=min_height_share,
+            classes=classes, scope=scope,
+        )  # fmt: skip
         held = {
             "own": "obstacles of its class",
             "own_or_unknown": "obstacles of its class or unknown",
@@ -77,9 +105,8 @@ class InsertedDetected(Relation):
         if returns < self.min_points or not judged:
             details["judged"] = 0
             return Verdict(True, self.name, "too few returns or not judged", details)
-        z = insertion.points[:, 2]
-        span = float(z.max() - z.min())
-        if insertion.span and span < self.min_height_share * insertion.span:
+        span, tall = self.spans(insertion)
+        if not tall:
             details["judged"] = 0
             return Verdict(
                 True,

@@ -8,16 +8,15 @@ from typing import Any
 import numpy as np
 
 from pytest_metamorphic.core.errors import InvalidArgument
-from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
-from pytest_metamorphic.lidar.followups.faults import _fraction
+from pytest_metamorphic.core.relations import CheckContext, Verdict
+from pytest_metamorphic.lidar.followups.insert.check import PlacedObjectCheck
 from pytest_metamorphic.lidar.followups.insert.relocation import RelocateObject
 from pytest_metamorphic.lidar.judging.found import (
     ClassRule,
     accepted_labels,
-    check_class_rule,
     found_as,
 )
-from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, footprint_distances
 
 __all__ = ["RelocatedFound"]
@@ -36,7 +35,7 @@ def _positive(value: object, name: str) -> float:
     return float(value)
 
 
-class RelocatedFound(Relation):
+class RelocatedFound(PlacedObjectCheck):
     """The moved object is found where it went, as what the system called it where it
     stood.
 
@@ -69,15 +68,12 @@ class RelocatedFound(Relation):
         yaw_tolerance: float = 30.0,
         scope: ScopeLike = "roi",
     ) -> None:
-        if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 1:
-            raise InvalidArgument(f"min_points={min_points!r} must be a positive int")
-        self.min_points = min_points
-        self.min_detected = _fraction(min_detected, "min_detected")
-        self.min_height_share = _fraction(min_height_share, "min_height_share")
-        self.classes = check_class_rule(classes)
+        super().__init__(
+            min_points=min_points, min_detected=min_detected, min_height_share=min_height_share,
+            classes=classes, scope=scope,
+        )  # fmt: skip
         self.center_tolerance = _positive(center_tolerance, "center_tolerance")
         self.yaw_tolerance = _positive(yaw_tolerance, "yaw_tolerance")
-        self.scope: ObstacleScope = as_scope(scope)
         self.name = (
             f"moved object found where it went (>= {min_points} returns: >= "
             f"{min_detected:.0%} in obstacles of its class, centre within "
@@ -104,7 +100,7 @@ class RelocatedFound(Relation):
         if not self.scope.judged([before], context.source_input)[0]:
             return Verdict(True, self.name, "the object is not judged where it stood", details)
         moved = relocation.insertion.points[:, :3]
-        if len(moved) < self.min_points or not self._tall_enough(relocation):
+        if len(moved) < self.min_points or not self.spans(relocation.insertion)[1]:
             return Verdict(True, self.name, "too few returns where it went", details)
         expected = relocation.expected(before)
         boxes = as_boxes(followup_output, "follow-up")
@@ -167,12 +163,6 @@ class RelocatedFound(Relation):
                     {**details, "blamed": [index]},
                 )
         return Verdict(True, self.name, details=details)
-
-    def _tall_enough(self, relocation: RelocateObject) -> bool:
-        z = relocation.insertion.points[:, 2]
-        span = float(z.max() - z.min())
-        total = relocation.insertion.span
-        return not total or span >= self.min_height_share * total
 
 
 def _holder(
