@@ -30,6 +30,7 @@ walls and bushes "car", and those hallucinations come and go with any change); t
 relations are not run for it (README, "Testing a learned detector", says why).
 
     python bench/mutation_score.py [--max-examples N] [--mutants a,b,...] [--scope roi|all]
+                                   [--correct-only a,b] [--relations prefix,...]
 """
 
 from __future__ import annotations
@@ -198,8 +199,15 @@ def main() -> None:
     parser.add_argument(
         "--correct-only", default="", help="run only these correct systems (comma-separated)"
     )
+    parser.add_argument(
+        "--relations",
+        default="",
+        help="run only relations whose names start with these (comma-separated; the others "
+        "are n/a): a column re-run after one relation changed",
+    )
     args = parser.parse_args()
     args.correct_only = [name for name in args.correct_only.split(",") if name]
+    only = tuple(prefix for prefix in args.relations.split(",") if prefix)
     names = [name for name in args.mutants.split(",") if name]
     # Falsifying examples hold whole frames; their reprs are long, and we print them cut.
     warnings.filterwarnings("ignore", category=HypothesisWarning)
@@ -237,7 +245,9 @@ def main() -> None:
         skipped = label in correct and args.correct_only and label not in args.correct_only
         results[label] = [
             ("n/a", "")
-            if skipped or not _expected(label, relation, index == len(suite) - 1)
+            if skipped
+            or not _expected(label, relation, index == len(suite) - 1)
+            or (only and not relation.name.startswith(only))
             else run_relation(system, relation, source, args.max_examples)
             for index, (relation, source) in enumerate(
                 learned_suite if label == "cnnseg_roi" else suite

@@ -4,7 +4,8 @@ A recording's own labels give templates of what drove by that day: KITTI's six s
 cars, a few pedestrians and one cyclist, and no bus. :func:`road_user_templates` renders
 the sizes a perception stack must also handle (semLidarFuzz's and MultiTest's point: a
 detector tuned on cars meets vans, lorries, buses, articulated trailers, children) on an
-empty road with an HDL-64E and cuts them as templates; insertion re-casts them for each
+empty road with an HDL-64E and cuts them as templates (a row of parked cars as one
+object too: a wall of cars a detector may merge into one cluster); insertion re-casts them for each
 target frame's sensor, like any other template. :data:`CLASS_SIZES` bounds scaling
 (:meth:`~pytest_metamorphic.lidar.followups.insert.ObjectTemplate.scaled`) to real sizes.
 """
@@ -47,7 +48,19 @@ ROAD_USERS: tuple[tuple[str, tuple[float, float], tuple[float, float, float], fl
     ("small car", (9.0, -4.0), (3.6, 1.6, 1.45), 0.4, "car"),
     ("child", (7.0, 3.0), (0.4, 0.35, 1.15), 0.0, "pedestrian"),
 )
+# (and PARKED_ROW, below)
 """The rendered road users: name, (x, y), (length, width, height), heading, class."""
+
+PARKED_ROW: tuple[tuple[float, float], float, int, tuple[float, float, float], float] = (
+    (-16.0, 9.0),
+    0.0,
+    3,
+    (4.2, 1.8, 1.5),
+    1.0,
+)
+"""A row of parked cars, inserted as one object (a wall of cars a detector may merge,
+and must not then drop): its centre (x, y), heading, how many cars, each car's size,
+and the gap between bumpers (m)."""
 
 
 def fits_class(size: tuple[float, float, float], label: Label) -> bool:
@@ -67,19 +80,45 @@ def road_user_templates() -> tuple[ObjectTemplate, ...]:
     from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
 
     ground = -1.73
-    obstacles = tuple(
+    obstacles = [
         Obstacle(
             Box((x, y, ground + size[2] / 2), size, yaw, label),  # type: ignore[arg-type]
             shape="box" if size[0] > 6 else "auto",
         )
         for _, (x, y), size, yaw, label in ROAD_USERS
-    )
-    road = ROI.from_polygons([[(-5.0, -20.0), (60.0, -20.0), (60.0, 20.0), (-5.0, 20.0)]])
-    frame = render(Scene(roi=road, obstacles=obstacles, name="road users"))
+    ]
+    row = _parked_row(ground)
+    obstacles += [Obstacle(car) for car in row]
+    road = ROI.from_polygons([[(-30.0, -20.0), (60.0, -20.0), (60.0, 20.0), (-30.0, 20.0)]])
+    frame = render(Scene(roi=road, obstacles=tuple(obstacles), name="road users"))
     named = []
     for template in object_templates(frame, min_returns=30):
         x = template.range * math.cos(template.bearing)
         y = template.range * math.sin(template.bearing)
-        name = min(ROAD_USERS, key=lambda user: math.dist(user[1], (x, y)))[0]
-        named.append(dataclasses.replace(template, source=f"road users#0 [{name}]"))
-    return tuple(named)
+        name, where, *_ = min(ROAD_USERS, key=lambda user: math.dist(user[1], (x, y)))
+        if math.dist(where, (x, y)) < 1.0:  # a road user, not a car of the parked row
+            named.append(dataclasses.replace(template, source=f"road users#0 [{name}]"))
+    # The row as one object: every return between its first bumper and its last.
+    (x, y), yaw, count, size, gap = PARKED_ROW
+    length = count * size[0] + (count - 1) * gap
+    whole = Box((x, y, ground + size[2] / 2), (length, size[1], size[2]), yaw, "car")
+    template = ObjectTemplate.from_frame(frame, whole)
+    named.append(dataclasses.replace(template, source="road users#0 [row of parked cars]"))
+    return tuple(sorted(named, key=lambda t: t.range))
+
+
+def _parked_row(ground: float) -> list[Box]:
+    """The cars of :data:`PARKED_ROW`."""
+    (x, y), yaw, count, size, gap = PARKED_ROW
+    step = size[0] + gap
+    first = -(count - 1) * step / 2
+    c, s = math.cos(yaw), math.sin(yaw)
+    return [
+        Box(
+            (x + (first + i * step) * c, y + (first + i * step) * s, ground + size[2] / 2),
+            size,
+            yaw,
+            "car",
+        )
+        for i in range(count)
+    ]
