@@ -320,9 +320,28 @@ def test_scaled_templates_keep_real_class_sizes_and_road_users_come_in_every_siz
     with pytest.raises(InvalidArgument, match="factor"):
         template.scaled(0)
     users = {t.source.split("[")[1].rstrip("]"): t for t in road_user_templates()}
-    assert {"bus", "lorry", "van", "child"} <= set(users)
+    assert {"bus", "lorry", "van", "child", "row of parked cars"} <= set(users)
     assert users["bus"].size[0] == 12.0 and users["child"].label == "pedestrian"
     assert all(fits_class(t.size, t.label) for t in users.values())
+    # The row is one object of three cars' returns, the gaps between them left open.
+    row = users["row of parked cars"]
+    assert row.size[0] == pytest.approx(14.6) and len(row.vertices) > 3 * 500
+
+
+def test_a_row_of_parked_cars_inserted_as_one_object_is_found_car_by_car() -> None:
+    frame = labelled_kitti(1)
+    row = next(t for t in road_user_templates() if t.source.endswith("[row of parked cars]"))
+    insertion = InsertObject.onto(frame, row, free_placements(frame, row, limit=1)[0])
+    followup = insertion.apply(frame)
+    reference = ReferencePerception()
+    found = [
+        box.label
+        for box in reference(followup)
+        if box.grown(0.1).contains(insertion.points[:, :3]).sum() > 100
+    ]
+    assert found == ["car", "car", "car"]
+    context = CheckContext(frame, followup, insertion.params(), 0)
+    assert object_insertion().relation.check(reference(frame), reference(followup), context).holds
 
 
 def test_insertion_draws_road_users_and_scales_without_labels_of_its_own() -> None:
