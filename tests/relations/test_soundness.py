@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 
 from pytest_metamorphic.core.cases import Followup, MetamorphicRelation
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
+from pytest_metamorphic.lidar.judging.tolerance import ToleranceLike
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.relations.lidar import lidar_relations
 from tests.core.lidar_cases import labelled_kitti, street
@@ -98,13 +99,14 @@ def violations(
     frames: dict[str, Frame],
     *,
     examples: int,
+    tolerance: ToleranceLike = "exact",
 ) -> list[Found]:
     """Every violation of every relation of the library by ``detector``: ``examples``
-    derandomized follow-ups per relation and frame."""
+    derandomized follow-ups per relation and frame, under the ``tolerance`` profile."""
     found: list[Found] = []
     for label, frame in frames.items():
         source_output = detector(frame)
-        for relation in lidar_relations():
+        for relation in lidar_relations(tolerance=tolerance):
             found += _search(name, detector, relation, label, frame, source_output, examples)
     return found
 
@@ -200,6 +202,16 @@ def test_every_relation_on_two_kitti_sweeps_and_a_rendered_street(name: str) -> 
 def test_every_relation_on_every_kitti_sweep(name: str) -> None:
     frames = {f"KITTI {i}": labelled_kitti(i) for i in range(6)} | {"street": street()}
     assert unexplained(violations(name, DETECTORS[name](), frames, examples=4)) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(DETECTORS))
+def test_every_relation_under_the_learned_profile(name: str) -> None:
+    """The learned profile is looser (places, not sizes or headings of turned obstacles),
+    and judges classes where the exact one does: it raises no alarm of its own."""
+    frames = {"KITTI 1": labelled_kitti(1), "KITTI 4": labelled_kitti(4), "street": street()}
+    found = violations(name, DETECTORS[name](), frames, examples=2, tolerance="learned")
+    assert unexplained(found) == []
 
 
 def test_an_unnamed_violation_fails_the_module() -> None:
