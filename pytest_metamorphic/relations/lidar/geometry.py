@@ -179,6 +179,21 @@ def translation_equivariance(
 ) -> MetamorphicRelation:
     """Shifting the cloud, the ROI and the boxes shifts the obstacles.
 
+    Optional, and not in :func:`lidar_relations`: no sensor sees a shifted scene. A real
+    sweep is centred on its sensor: density falls with range, beams fan out from the
+    origin, what is behind an object is in its shadow. Shifted, the near side of the
+    sweep has the density of a far side and the shadows point away from a place where no
+    sensor stands, and a detector that uses any of that (range gates and range-dependent
+    thresholds, polar or sensor-anchored grids, MinBox's choice of the edges facing the
+    sensor, a network trained on sensor-centred sweeps) does not claim the relation, for
+    good reason. Detectors that treat the sweep as a set of points in the plane (a
+    clusterer and box fitter with no range in them) do; for them it is the cheapest test
+    that nothing depends on absolute coordinates. Measured (docs/soundness.md): the
+    reference, its whole-scene variant and the scikit-learn example hold shifts by any
+    amount on rendered streets and fail them on the KITTI sweeps, and the reference fails
+    whole-cell shifts there too (4 of 56 follow-ups: an obstacle whose box moves by 10-20
+    cm). Hence opt-in, for a detector that claims it.
+
     Parameters
     ----------
     shifts : {"cells", "any"}
@@ -194,20 +209,6 @@ def translation_equivariance(
         ROI, labels not compared): every cell border cuts the scene elsewhere.
     center_tolerance, size_tolerance, yaw_tolerance, min_points, boundary_margin, same_label
         Override those defaults (metres, metres, degrees, points, metres, bool).
-
-    Optional, and not in :func:`lidar_relations`: no sensor sees a shifted scene. A real
-    sweep is centred on its sensor: density falls with range, beams fan out from the
-    origin, what is behind an object is in its shadow. Shifted, the near side of the
-    sweep has the density of a far side and the shadows point away from a place where no
-    sensor stands, and a detector that uses any of that (range gates and range-dependent
-    thresholds, polar or sensor-anchored grids, MinBox's choice of the edges facing the
-    sensor, a network trained on sensor-centred sweeps) does not claim the relation, for
-    good reason. Detectors that treat the sweep as a set of points in the plane (a
-    clusterer and box fitter with no range in them) do; for them it is the cheapest test
-    that nothing depends on absolute coordinates. Measured (tests): the reference fails
-    whole-cell shifts on KITTI (4 of 56 follow-ups: an obstacle whose box moves by 10-20
-    cm) and arbitrary ones more often; the scikit-learn example's 10 cm voxel grid and 40
-    m range cap make it fail too. Hence opt-in, for a detector that claims it.
     """
     if shifts not in ("cells", "any"):
         raise InvalidArgument(f"shifts={shifts!r} must be 'cells' or 'any'")
