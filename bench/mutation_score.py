@@ -99,6 +99,29 @@ LEARNED_HOLDS = (
 )
 
 
+# Violations of a correct system that are real weaknesses of it, checked by hand: (system,
+# relation name prefix, text the violation must contain) -> the mechanism. Anything else a
+# correct system violates is a false alarm of the library.
+KNOWN_WEAKNESSES: dict[tuple[str, str, str], str] = {
+    ("whole_scene", "MR1 (paper's check)", "(6.84, -10.55, -1.63)"): (
+        "clusters cross the ROI's edge: on KITTI sweep 3 one point put 3 m off the road "
+        "joins a cluster straddling the edge to a car 0.9 m inside it (its box moves and "
+        "grows from 2.15 to 2.51 m; the same input does it on the code before issue 41)"
+    ),
+    ("whole_scene", "noise outside ROI => O == O'", "(6.84, -10.55, -1.63)"): (
+        "the same merge across the ROI's edge as the paper's check"
+    ),
+}
+
+
+def _known(label: str, relation: str, text: str) -> str | None:
+    """The real weakness a correct system's violation shows, when it is a known one."""
+    for (system, prefix, evidence), mechanism in KNOWN_WEAKNESSES.items():
+        if label == system and relation.startswith(prefix) and evidence in text:
+            return mechanism
+    return None
+
+
 def _standing(x: float, y: float, size: tuple[float, float, float], yaw: float, label: str) -> Box:
     return Box((x, y, GROUND_Z + size[2] / 2), size, yaw, label)  # type: ignore[arg-type]
 
@@ -274,20 +297,34 @@ def main() -> None:
         if label not in correct and kills:
             killed_count += 1
         if label in correct:
-            verdict = f"{sum(status in ('killed', 'error') for status, _ in row)} false alarm(s)"
+            count = sum(
+                status in ("killed", "error") and not _known(label, relation.name, text)
+                for (status, text), (relation, _) in zip(row, suite, strict=True)
+            )
+            verdict = f"{count} false alarm(s)"
         else:
             verdict = "yes" if kills else "NO"
         print(f"{label:<26}" + "".join(f"{c:>4}" for c in cells) + f"  {verdict}")
     if unsound:
         print(f"\nthe reference violates {sorted(short[i] for i in unsound)}: not counted")
     alarms = {
-        label: sum(status in ("killed", "error") for status, _ in results[label])
+        label: sum(
+            status in ("killed", "error") and not _known(label, relation.name, text)
+            for (status, text), (relation, _) in zip(results[label], suite, strict=True)
+        )
         for label in correct
         if label != "reference"
     }
+    known = 0
     for label in alarms:
-        for code, (status, text) in zip(short, results[label], strict=True):
-            if status in ("killed", "error"):
+        for code, (status, text), (relation, _) in zip(short, results[label], suite, strict=True):
+            if status not in ("killed", "error"):
+                continue
+            mechanism = _known(label, relation.name, text)
+            if mechanism:
+                known += 1
+                print(f"\n  KNOWN WEAKNESS {label} x {code}: {mechanism}")
+            else:
                 print(f"\n  FALSE ALARM {label} x {code}:\n      " + text[:1500])
     print("\nMinimal failing examples (shrunk by Hypothesis):")
     for label in names:
@@ -307,7 +344,7 @@ def main() -> None:
     print(
         f"RESULT mutation_score={score:.4f} mutants={total} killed={killed_count} "
         f"relations={len(suite)} reference_violations={len(unsound)} "
-        f"whole_scene_false_alarms={alarms['whole_scene']} "
+        f"whole_scene_false_alarms={alarms['whole_scene']} known_weaknesses={known} "
         f"learned_false_alarms={alarms.get('cnnseg_roi', -1)} seconds={elapsed:.0f}"
     )
 
