@@ -89,8 +89,10 @@ class SparseHeadingFlip(ReferencePerception):
 class TemporalGround(ReferencePerception):
     """Ground heights averaged per 2 m cell over this sweep and the previous one.
 
-    A smoothing of the ground estimate over two sweeps (a moving average, as an
-    elevation map keeps) left on in a detector that is per-frame by contract: each cell's
+    A filter over consecutive sweeps left on in a detector that is per-frame by contract
+    (Autoware's obstacle segmentation has a ``use_time_series_filter`` beside its
+    single-frame one, autoware_universe pull request #2824; Apollo's camera object filter
+    kept per-object state it never updated, ApolloAuto/apollo issue #5246): each cell's
     ground is the mean of the current sweep's estimate and the previous sweep's. Within
     one recording the ground barely changes between sweeps; after another sweep (turned,
     from elsewhere) a cell's ground is off by half the difference, and low objects sink
