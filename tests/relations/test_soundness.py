@@ -72,8 +72,8 @@ KNOWN: dict[tuple[str, str], str] = {
     ("DBSCAN ties", "an object inserted"): (
         "it has no cyclist class (the example's size rules), so an inserted cyclist can be a "
         "'pedestrian'; and its ground is each 0.5 m cell's lowest return: a car far away, "
-        "whose surrounding ground is unseen, loses its lowest rows to it (29 of 36 returns of a car at 43.5 m) "
-        "and the rest is too sparse for DBSCAN"
+        "whose surrounding ground is unseen, loses its lowest rows to it (29 of 36 returns of "
+        "a car at 43.5 m) and the rest is too sparse for DBSCAN"
     ),
     ("DBSCAN ties", "an object moved"): (
         "DBSCAN over its cell-minimum ground chains a pedestrian moved 30 % farther (to 11.4 "
