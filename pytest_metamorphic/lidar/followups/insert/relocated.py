@@ -18,6 +18,7 @@ from pytest_metamorphic.lidar.judging.found import (
 )
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
 from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, footprint_distances
+from pytest_metamorphic.lidar.roi.arguments import _positive_float
 
 __all__ = ["RelocatedFound"]
 
@@ -25,14 +26,6 @@ __all__ = ["RelocatedFound"]
 # (a car cut to its front half is nearly square, and its box's heading is arbitrary).
 _ELONGATED = 2.2
 _ASPECT = 1.5
-
-
-def _positive(value: object, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidArgument(f"{name}={value!r} must be a positive number")
-    if not (math.isfinite(value) and value > 0):
-        raise InvalidArgument(f"{name}={value!r} must be a positive number")
-    return float(value)
 
 
 class RelocatedFound(PlacedObjectCheck):
@@ -72,8 +65,8 @@ class RelocatedFound(PlacedObjectCheck):
             min_points=min_points, min_detected=min_detected, min_height_share=min_height_share,
             classes=classes, scope=scope,
         )  # fmt: skip
-        self.center_tolerance = _positive(center_tolerance, "center_tolerance")
-        self.yaw_tolerance = _positive(yaw_tolerance, "yaw_tolerance")
+        self.center_tolerance = _positive_float(center_tolerance, "center_tolerance")
+        self.yaw_tolerance = _positive_float(yaw_tolerance, "yaw_tolerance")
         self.name = (
             f"moved object found where it went (>= {min_points} returns: >= "
             f"{min_detected:.0%} in obstacles of its class, centre within "

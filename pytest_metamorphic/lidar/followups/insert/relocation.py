@@ -171,9 +171,8 @@ class RelocateObject:
         chosen = template if template is not None else ObjectTemplate.from_frame(frame, box)
         without = without if without is not None else removal.apply(frame)
         target = ground if ground is not None else _TargetGround(without)
-        probe = chosen.box_at(move.placement(chosen, 0.0))
-        ground_z = target.ground_under(probe, vacated=box)
-        if ground_z is None or not target.in_clear_view(probe):
+        ground_z = _free_ground(chosen, move, target, box)
+        if ground_z is None:
             return None
         insertion = InsertObject.onto(
             without, chosen, move.placement(chosen, ground_z), layout=layout
@@ -304,12 +303,9 @@ class Movable:
         placement = move.placement(self.template, 0.0)
         if not layout.min_range + 2.0 < placement.range < 0.9 * layout.max_range:
             return False
-        probe = self.template.box_at(placement)
-        if self.ground.ground_under(probe, vacated=self.box) is None:
+        if _free_ground(self.template, move, self.ground, self.box) is None:
             return False
-        if not self.ground.in_clear_view(probe):
-            return False
-        return bool(scope.judged([probe], self.frame)[0])
+        return bool(scope.judged([self.template.box_at(placement)], self.frame)[0])
 
     def relocate(self, move: Move, *, layout: BeamLayout) -> RelocateObject | None:
         """The object moved by ``move`` (None: the place is not free)."""
@@ -317,6 +313,18 @@ class Movable:
             self.frame, self.box, move, layout=layout, margin=self.margin,
             template=self.template, without=self.without, ground=self.ground,
         )  # fmt: skip
+
+
+def _free_ground(
+    template: ObjectTemplate, move: Move, ground: _TargetGround, vacated: Box
+) -> float | None:
+    """The ground height where ``move`` puts ``template``, when that is free seen ground
+    in clear view (``vacated``: where it stood, its stray returns not counted), else None."""
+    probe = template.box_at(move.placement(template, 0.0))
+    height = ground.ground_under(probe, vacated=vacated)
+    if height is None or not ground.in_clear_view(probe):
+        return None
+    return height
 
 
 def _candidates(kind: MoveKind) -> list[Move]:
