@@ -51,18 +51,19 @@ def _reduce(system, frame, noise, source_output, output):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n", [100, 1000])
-def test_global_ground_plane_hiding_set_on_a_rendered_street(n: int) -> None:
-    # One plane fitted to the whole sweep: dozens of far points are needed to tilt it
-    # enough, so the sets are large and proving them minimal takes hundreds of calls.
+def test_global_ground_plane_hiding_set_on_a_rendered_street() -> None:
+    # One plane fitted to the whole sweep: hundreds of far points are needed to tilt it
+    # enough (since the reference classifier weighs the crown of an object, 100-300 do
+    # not turn the cyclist into a car for any of 40 seeds), so the set stays large and the
+    # reduction's call budget runs out before it is proven minimal: it must say so, and
+    # what it returns must still hide the obstacle.
     system = mutant("global_ground_plane")
     frame = street()
-    noise, source_output, output = failing_noise(system, frame, n)
+    noise, source_output, output = failing_noise(system, frame, 1000)
     result = _reduce(system, frame, noise, source_output, output)
-    if n == 100:
-        assert result.proven_minimal
     points = result.perturbation.points
     assert np.array_equal(points, noise.points[list(result.indices)])
+    assert len(points) < 1000
     if result.proven_minimal:
         assert_minimal_hiding_set(system, frame, points)
     else:
