@@ -1,0 +1,124 @@
+"""Which point of a follow-up sweep is which point of its source.
+
+Point-by-point relations (:mod:`.points`) compare the label or cluster a component gave a
+return in the source with the one it gave the same return in the follow-up. Follow-ups
+reorder, repeat, add and remove returns, and turn or mirror the whole sweep; the same
+return is found by its coordinates: each follow-up point is brought back into the source's
+frame (undoing the turn, mirror or shift its parameters name) and matched to a source
+point within ``tolerance`` (a turned coordinate is rounded to float32 again, so a turn
+needs a millimetre; unmoved points match exactly). A follow-up point that matches none is
+*new* (noise, an inserted object, a re-cast beam); a source point no follow-up point
+matches was *removed*. Both are the follow-up's change; relations judge the points farther
+than a stated radius from it.
+
+Returns recorded twice in the source (the same coordinates) form one group: a group whose
+copies the component labelled differently cannot say which label a follow-up copy should
+keep, so it is not judged (:attr:`PointCorrespondence.source_group`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.model.frame import Frame
+
+__all__ = ["ALIGNED_TOLERANCE", "PointCorrespondence", "align_to_source", "corresponding_points"]
+
+ALIGNED_TOLERANCE = 1e-3
+"""Metres within which a turned or mirrored follow-up point, turned back, is its source
+point (float32 rounding of a coordinate 120 m out is 8 micrometres)."""
+_EXACT = 1e-6
+
+
+def align_to_source(
+    xyz: NDArray[np.floating[Any]], params: Mapping[str, Any]
+) -> tuple[NDArray[np.float64], bool]:
+    """Follow-up coordinates in the source's frame, undoing the transform ``params``
+    names (``theta_deg``: a turn about the sensor; ``mirrored``: y -> -y; ``shift_x_m``,
+    ``shift_y_m``: a shift); and whether anything was undone."""
+    out = np.asarray(xyz, dtype=np.float64).copy()
+    moved = False
+    if "shift_x_m" in params or "shift_y_m" in params:
+        out[:, 0] -= float(params.get("shift_x_m", 0.0))
+        out[:, 1] -= float(params.get("shift_y_m", 0.0))
+        moved = True
+    if "theta_deg" in params:
+        theta = -math.radians(float(params["theta_deg"]))
+        c, s = math.cos(theta), math.sin(theta)
+        x, y = out[:, 0].copy(), out[:, 1].copy()
+        out[:, 0], out[:, 1] = c * x - s * y, s * x + c * y
+        moved = True
+    if "mirrored" in params:
+        out[:, 1] = -out[:, 1]
+        moved = True
+    return out, moved
+
+
+@dataclass(frozen=True)
+class PointCorrespondence:
+    """How a follow-up's points relate to its source's.
+
+    Attributes
+    ----------
+    origin : (m,) intp
+        For each follow-up point, the source point it is (-1: a new point).
+    kept : (n,) bool
+        Source points that some follow-up point is.
+    changed : (k, 3) float64
+        Where the follow-up changed the sweep, in the source's frame: its new points and
+        the source points it removed.
+    source_group : (n,) intp
+        Source points with equal coordinates share a group id.
+    """
+
+    origin: NDArray[np.intp]
+    kept: NDArray[np.bool_]
+    changed: NDArray[np.float64]
+    source_group: NDArray[np.intp]
+
+    def far_from_change(self, xyz: NDArray[np.floating[Any]], radius: float) -> NDArray[np.bool_]:
+        """(n,) bool: which of ``xyz`` lie farther than ``radius`` metres from every change
+        (all of them when ``radius`` is 0 or nothing changed)."""
+        if radius <= 0 or len(self.changed) == 0:
+            return np.ones(len(xyz), dtype=bool)
+        distance, _ = cKDTree(self.changed).query(
+            np.asarray(xyz, dtype=np.float64), distance_upper_bound=radius
+        )
+        return ~np.isfinite(distance)
+
+
+def corresponding_points(
+    source: Frame, followup: Frame, params: Mapping[str, Any]
+) -> PointCorrespondence:
+    """Match the follow-up's points to the source's (see the module docstring)."""
+    for value, name in ((source, "source input"), (followup, "follow-up input")):
+        if not isinstance(value, Frame):
+            raise InvalidArgument(
+                f"a point-by-point relation needs Frames; the {name} is {type(value).__name__}"
+            )
+    source_xyz = source.cloud.xyz.astype(np.float64)
+    followup_xyz, moved = align_to_source(followup.cloud.xyz, params)
+    tolerance = ALIGNED_TOLERANCE if moved else _EXACT
+    origin = np.full(len(followup_xyz), -1, dtype=np.intp)
+    if len(source_xyz) and len(followup_xyz):
+        distance, nearest = cKDTree(source_xyz).query(followup_xyz, distance_upper_bound=tolerance)
+        found = np.isfinite(distance)
+        origin[found] = nearest[found]
+    kept = np.zeros(len(source_xyz), dtype=bool)
+    kept[origin[origin >= 0]] = True
+    # The tree returns one of a group of equal source points: the whole group is kept.
+    _, group = np.unique(source.cloud.xyz, axis=0, return_inverse=True)
+    group = np.asarray(group, dtype=np.intp).reshape(-1)
+    kept_groups = np.zeros(int(group.max()) + 1 if len(group) else 0, dtype=bool)
+    kept_groups[group[kept]] = True
+    kept = kept_groups[group] if len(group) else kept
+    changed = np.concatenate([followup_xyz[origin < 0], source_xyz[~kept]])
+    return PointCorrespondence(origin, kept, changed, group)
