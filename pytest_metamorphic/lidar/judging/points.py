@@ -304,12 +304,16 @@ class PointsKeepLabels(Relation):
             )
         else:
             distance = "; the follow-up added and removed no return"
-        shown = "; ".join(
-            f"#{int(o)} at ({x:.2f}, {y:.2f}, {z:.2f}): {what}"
-            for o, (x, y, z), what in zip(
-                origins[:SHOWN_POINTS], xyz[:SHOWN_POINTS], kinds, strict=False
-            )
-        )
+        seen: set[int] = set()
+        named = []
+        for origin, (x, y, z), what in zip(
+            origins[:SHOWN_POINTS].tolist(), xyz[:SHOWN_POINTS], kinds, strict=False
+        ):
+            # A repeated return and its original are one source return, changed twice.
+            repeat = " (its repeat)" if origin in seen else ""
+            seen.add(origin)
+            named.append(f"#{origin}{repeat} at ({x:.2f}, {y:.2f}, {z:.2f}): {what}")
+        shown = "; ".join(named)
         more = f"; ... {len(flipped) - SHOWN_POINTS} more" if len(flipped) > SHOWN_POINTS else ""
         allowed = f" (at most {self.max_changed} allowed)" if self.max_changed else ""
         head = f"{len(flipped)} of {judged} judged returns changed{allowed}"

@@ -189,8 +189,10 @@ def repeated_sweep(
     kind: PointOutputKind, *, border: float = 0.0, name: str | None = None
 ) -> MetamorphicRelation:
     """The same sweep after 1-3 other sweeps: every return keeps its label or cluster (a
-    per-sweep component; one that adapts to the sweeps it saw, as Patchwork++ reused
-    does, is not one)."""
+    per-sweep component). Like
+    :func:`~pytest_metamorphic.relations.lidar.history_independence`, it compares with the
+    source's second run, so a component that differs only on its very first call (a
+    reused Patchwork++) passes."""
     what = _what(kind)
     sweeps = history_independence()
     return MetamorphicRelation(

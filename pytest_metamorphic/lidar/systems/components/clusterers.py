@@ -1,6 +1,7 @@
 """Clusterers as systems under test: a frame in, a cluster for every return out.
 
-A stack clusters the returns its earlier stages left: those in the ROI, minus the ground.
+A stack clusters the returns its earlier stages left: those in the ROI, minus the ground
+(found among the ROI's returns: the ROI is cut first, as Apollo's pipeline does).
 Each adapter here takes those stages as arguments (``ground=`` any ground segmenter of
 :mod:`.ground` or a callable returning
 :class:`~pytest_metamorphic.lidar.model.point_outputs.PointLabels`, ``within_roi=``), clusters
@@ -59,19 +60,24 @@ class ClusterInput:
         self.ground, self.within_roi, self.features = ground, bool(within_roi), features
 
     def mask(self, frame: Frame) -> NDArray[np.bool_]:
-        """(n,) bool: the returns that are clustered."""
+        """(n,) bool: the returns that are clustered. The ROI is cut first and the ground
+        segmenter sees only the returns in it, as in Apollo's pipeline (so nothing outside
+        the ROI can change what is clustered)."""
         keep = np.ones(len(frame.cloud), dtype=bool)
         if self.within_roi:
             if frame.roi is None:
                 raise InvalidArgument(f"within_roi=True, but frame {frame!r} has no ROI")
             keep &= np.asarray(frame.roi.contains(frame.cloud.xyz[:, :2]), dtype=bool)
         if self.ground is not None:
-            labels = self.ground(frame)
-            if not isinstance(labels, PointLabels) or len(labels) != len(keep):
+            rows = np.flatnonzero(keep)
+            seen = frame.with_cloud(frame.cloud[rows]) if self.within_roi else frame
+            labels = self.ground(seen)
+            if not isinstance(labels, PointLabels) or len(labels) != len(rows):
                 raise InvalidArgument(
-                    f"ground={self.ground!r} must return PointLabels for all {len(keep)} returns"
+                    f"ground={self.ground!r} must return PointLabels for all {len(rows)} "
+                    "returns it is given"
                 )
-            keep &= labels.labels != GROUND
+            keep[rows[labels.labels == GROUND]] = False
         return keep
 
     def describe(self) -> str:

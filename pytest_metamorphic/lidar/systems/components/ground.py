@@ -78,9 +78,10 @@ class PatchworkGround:
         mounted 1.723 m up.
     reuse : bool
         Keep one estimator across calls, as a running stack does. Patchwork++ adapts its
-        elevation and flatness thresholds to the sweeps it has seen, so a reused estimator
-        labels a sweep by its history; the default (False) makes a fresh one per call,
-        so that a per-sweep relation judges the sweep alone.
+        thresholds to what it has seen: on KITTI sweep 000001 a reused estimator labels 23
+        returns differently on its first call than on its second (later calls agree with
+        the second, whatever sweeps came between). The default (False) makes a fresh one
+        per call, so that a per-sweep relation judges the sweep alone.
     """
 
     name = "patchwork++"
