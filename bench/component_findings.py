@@ -32,7 +32,6 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import conftest  # noqa: E402
-
 from pytest_metamorphic.core.cases import Followup  # noqa: E402
 from pytest_metamorphic.core.relations import CheckContext  # noqa: E402
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402

@@ -35,7 +35,6 @@ __all__ = ["ALIGNED_TOLERANCE", "PointCorrespondence", "align_to_source", "corre
 ALIGNED_TOLERANCE = 1e-3
 """Metres within which a turned or mirrored follow-up point, turned back, is its source
 point (float32 rounding of a coordinate 120 m out is 8 micrometres)."""
-_EXACT = 1e-6
 
 
 def align_to_source(
@@ -95,6 +94,34 @@ class PointCorrespondence:
         return ~np.isfinite(distance)
 
 
+def _row_keys(xyz: NDArray[np.float32]) -> NDArray[np.uint64]:
+    """One 64-bit key per row of float32 coordinates (equal rows, equal keys; -0.0 and
+    0.0 are one coordinate). Different rows share a key with odds of about 2**-64 per
+    pair; :func:`corresponding_points` checks every match."""
+    bits = (np.ascontiguousarray(xyz, dtype=np.float32) + np.float32(0.0)).view(np.uint32)
+    bits = bits.astype(np.uint64)
+    with np.errstate(over="ignore"):
+        return (
+            bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+            ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+            ^ bits[:, 2] * np.uint64(0x165667B19E3779F9)
+        )
+
+
+def _exact_origins(source: NDArray[np.float32], followup: NDArray[np.float32]) -> NDArray[np.intp]:
+    """For each follow-up row, a source row with the same coordinates (-1: none)."""
+    keys = _row_keys(source)
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    wanted = _row_keys(followup)
+    at = np.minimum(np.searchsorted(sorted_keys, wanted), max(len(keys) - 1, 0))
+    origin = np.where(sorted_keys[at] == wanted, order[at], -1).astype(np.intp)
+    found = origin >= 0
+    same = np.all(source[origin[found]] == followup[found], axis=1)
+    origin[np.flatnonzero(found)[~same]] = -1  # a key collision, not the same return
+    return origin
+
+
 def corresponding_points(
     source: Frame, followup: Frame, params: Mapping[str, Any]
 ) -> PointCorrespondence:
@@ -106,19 +133,21 @@ def corresponding_points(
             )
     source_xyz = source.cloud.xyz.astype(np.float64)
     followup_xyz, moved = align_to_source(followup.cloud.xyz, params)
-    tolerance = ALIGNED_TOLERANCE if moved else _EXACT
     origin = np.full(len(followup_xyz), -1, dtype=np.intp)
     if len(source_xyz) and len(followup_xyz):
-        distance, nearest = cKDTree(source_xyz).query(followup_xyz, distance_upper_bound=tolerance)
-        found = np.isfinite(distance)
-        origin[found] = nearest[found]
-    kept = np.zeros(len(source_xyz), dtype=bool)
-    kept[origin[origin >= 0]] = True
-    # The tree returns one of a group of equal source points: the whole group is kept.
-    _, group = np.unique(source.cloud.xyz, axis=0, return_inverse=True)
+        if moved:
+            distance, nearest = cKDTree(source_xyz).query(
+                followup_xyz, distance_upper_bound=ALIGNED_TOLERANCE
+            )
+            found = np.isfinite(distance)
+            origin[found] = nearest[found]
+        else:
+            origin = _exact_origins(source.cloud.xyz, followup.cloud.xyz)
+    # Equal source points form a group; a match to one of them keeps the whole group.
+    _, group = np.unique(_row_keys(source.cloud.xyz), return_inverse=True)
     group = np.asarray(group, dtype=np.intp).reshape(-1)
     kept_groups = np.zeros(int(group.max()) + 1 if len(group) else 0, dtype=bool)
-    kept_groups[group[kept]] = True
-    kept = kept_groups[group] if len(group) else kept
+    kept_groups[group[origin[origin >= 0]]] = True
+    kept = kept_groups[group] if len(group) else np.zeros(0, dtype=bool)
     changed = np.concatenate([followup_xyz[origin < 0], source_xyz[~kept]])
     return PointCorrespondence(origin, kept, changed, group)

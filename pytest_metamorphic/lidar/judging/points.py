@@ -72,16 +72,19 @@ def _non_negative(value: Any, name: str) -> float:
     return float(value)
 
 
-def _partners(keys: NDArray[np.int64], values: NDArray[np.int64]) -> dict[int, int]:
-    """For each key, the value it is paired with most often (ties: the smallest value)."""
+def _partners(keys: NDArray[np.intp], values: NDArray[np.intp], size: int) -> NDArray[np.intp]:
+    """(size,) intp: for each key 0..size-1, the value it is paired with most often (ties:
+    the smallest value; -1 for a key never seen)."""
+    partner = np.full(size, -1, dtype=np.intp)
     if len(keys) == 0:
-        return {}
+        return partner
     pairs, counts = np.unique(np.stack([keys, values]), axis=1, return_counts=True)
     order = np.lexsort((pairs[1], -counts, pairs[0]))
     pairs = pairs[:, order]
     first = np.ones(pairs.shape[1], dtype=bool)
     first[1:] = pairs[0, 1:] != pairs[0, :-1]
-    return dict(zip(pairs[0, first].tolist(), pairs[1, first].tolist(), strict=True))
+    partner[pairs[0, first]] = pairs[1, first]
+    return partner
 
 
 def changed_clusters(
@@ -104,13 +107,17 @@ def changed_clusters(
     """
     source = np.asarray(source, dtype=np.int64)
     followup = np.asarray(followup, dtype=np.int64)
+    # Cluster ids are arbitrary ints: number them 0..k-1 on each side first.
+    source_ids, a = np.unique(source, return_inverse=True)
+    followup_ids, b = np.unique(followup, return_inverse=True)
+    a, b = a.reshape(-1), b.reshape(-1)
     both = (source != NOISE) & (followup != NOISE)
-    forward = _partners(source[both], followup[both])
-    backward = _partners(followup[both], source[both])
-    partner_of_source = np.array([forward.get(v, NOISE) for v in source.tolist()], dtype=np.int64)
-    moved_to = np.array([backward.get(v, NOISE) for v in followup.tolist()], dtype=np.int64)
+    forward = _partners(a[both], b[both], len(source_ids))
+    backward = _partners(b[both], a[both], len(followup_ids))
+    moved = backward[b]
+    moved_to = np.where(moved >= 0, source_ids[np.maximum(moved, 0)], NOISE)
     changed = (source == NOISE) != (followup == NOISE)
-    changed |= both & ((followup != partner_of_source) | (source != moved_to))
+    changed |= both & ((b != forward[a]) | (a != moved))
     return changed, moved_to
 
 
@@ -195,9 +202,9 @@ class PointsKeepLabels(Relation):
             )
         flipped = np.flatnonzero(changed)
         if self.kind == "labels":
-            kinds = [f"{_name(source, before[i])} -> {_name(source, after[i])}" for i in flipped]
+            kinds = _label_changes(source, before[flipped], after[flipped])
         else:
-            kinds = [_cluster_change(before[i], after[i], moved_to[i]) for i in flipped]
+            kinds = _cluster_changes(before[flipped], after[flipped], moved_to[flipped])
         details: dict[str, Any] = {
             "judged": len(rows),
             **counts,
@@ -283,17 +290,17 @@ class PointsKeepLabels(Relation):
     def _explain(
         self,
         flipped: NDArray[np.intp],
-        kinds: list[str],
+        kinds: tuple[NDArray[np.intp], list[str]],
         frame: Frame,
         match: PointCorrespondence,
         rows: NDArray[np.intp],
         judged: int,
     ) -> str:
-        tally: dict[str, int] = {}
-        for what in kinds:
-            tally[what] = tally.get(what, 0) + 1
+        codes, names = kinds
+        counts = np.bincount(codes, minlength=len(names))
         summary = ", ".join(
-            f"{count} {what}" for what, count in sorted(tally.items(), key=lambda kv: -kv[1])
+            f"{counts[code]} {names[code]}"
+            for code in sorted(np.flatnonzero(counts).tolist(), key=lambda c: (-counts[c], c))
         )
         origins = match.origin[rows][flipped]
         xyz = frame.cloud.xyz[origins].astype(np.float64)
@@ -306,9 +313,13 @@ class PointsKeepLabels(Relation):
             distance = "; the follow-up added and removed no return"
         seen: set[int] = set()
         named = []
-        for origin, (x, y, z), what in zip(
-            origins[:SHOWN_POINTS].tolist(), xyz[:SHOWN_POINTS], kinds, strict=False
+        for origin, (x, y, z), code in zip(
+            origins[:SHOWN_POINTS].tolist(),
+            xyz[:SHOWN_POINTS],
+            codes[:SHOWN_POINTS].tolist(),
+            strict=True,
         ):
+            what = names[code]
             # A repeated return and its original are one source return, changed twice.
             repeat = " (its repeat)" if origin in seen else ""
             seen.add(origin)
@@ -320,15 +331,41 @@ class PointsKeepLabels(Relation):
         return f"{head}: {summary}{distance}. {shown}{more}"
 
 
+def _label_changes(
+    labels: PointLabels | Partition, before: NDArray[np.int64], after: NDArray[np.int64]
+) -> tuple[NDArray[np.intp], list[str]]:
+    """Each changed return's kind of change as a code into the names ("ground -> not
+    ground"), vectorised: a violation may change tens of thousands of returns."""
+    if len(before) == 0:
+        return np.empty(0, dtype=np.intp), []
+    low = min(int(before.min()), int(after.min()))
+    span = max(int(before.max()), int(after.max())) - low + 1
+    keys, codes = np.unique((before - low) * span + (after - low), return_inverse=True)
+    names = [
+        f"{_name(labels, key // span + low)} -> {_name(labels, key % span + low)}"
+        for key in keys.tolist()
+    ]
+    return np.asarray(codes, dtype=np.intp).reshape(-1), names
+
+
+_CLUSTER_CHANGES = [
+    "noise -> a cluster",
+    "cluster -> noise",
+    "joined another cluster",
+    "split off its cluster",
+]
+
+
+def _cluster_changes(
+    before: NDArray[np.int64], after: NDArray[np.int64], moved_to: NDArray[np.int64]
+) -> tuple[NDArray[np.intp], list[str]]:
+    """Each changed return's kind of change, as a code into :data:`_CLUSTER_CHANGES`."""
+    codes = np.full(len(before), 3, dtype=np.intp)
+    codes[(moved_to != NOISE) & (moved_to != before)] = 2
+    codes[after == NOISE] = 1
+    codes[before == NOISE] = 0
+    return codes, _CLUSTER_CHANGES
+
+
 def _name(labels: PointLabels | Partition, value: Any) -> str:
     return labels.name(int(value)) if isinstance(labels, PointLabels) else str(int(value))
-
-
-def _cluster_change(before: Any, after: Any, moved_to: Any) -> str:
-    if before == NOISE:
-        return "noise -> a cluster"
-    if after == NOISE:
-        return "cluster -> noise"
-    if moved_to not in (NOISE, before):
-        return "joined another cluster"
-    return "split off its cluster"
