@@ -190,6 +190,7 @@ def test_hdbscan_clusters_the_same_returns_differently_in_another_order() -> Non
     assert "cluster -> noise" in message or "joined another cluster" in message
 
 
+@pytest.mark.slow
 @needs_data
 def test_dbscan_counts_a_repeated_return_twice() -> None:
     # One return recorded twice reaches min_samples and becomes a core point: noise turns

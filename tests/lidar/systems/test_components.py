@@ -118,3 +118,17 @@ def test_patchwork_labels_a_kitti_sweep_and_refuses_unknown_parameters() -> None
     three = reused(frame)
     assert one != two and two == three
     assert one.labels.tolist() == first.labels.tolist()
+
+
+def test_open3d_components_label_and_cluster_the_street() -> None:
+    pytest.importorskip("open3d", reason="open3d is not installed (pip install open3d)")
+    from pytest_metamorphic.lidar.systems.components import Open3DClusters, Open3DPlaneGround
+
+    frame = _street()
+    plane = Open3DPlaneGround(distance=0.05)(frame)
+    assert (plane.labels[:3000] == GROUND).all() and not (plane.labels[3000:] == GROUND).any()
+    assert Open3DPlaneGround(distance=0.05)(frame) == plane  # seeded: the same plane again
+    clusters = Open3DClusters(eps=0.5, min_points=5, ground=ReferenceGround(), within_roi=True)(frame)
+    assert clusters.count == 2 and len(clusters) == len(frame.cloud)
+    with pytest.raises(InvalidArgument, match="ransac_n=2 must be an int"):
+        Open3DPlaneGround(ransac_n=2)
