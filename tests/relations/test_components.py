@@ -68,7 +68,9 @@ def test_bad_arguments_fail_when_the_relation_is_made(make, message) -> None:
 
 @FAST
 @metamorphic(source=st.builds(street), relations=component_relations("clusters", symmetric=True))
-def test_the_reference_segmentation_keeps_every_return_on_a_rendered_street(frame: Frame) -> Partition:
+def test_the_reference_segmentation_keeps_every_return_on_a_rendered_street(
+    frame: Frame,
+) -> Partition:
     # Grid cells anchored at the sensor, ground found among the ROI's returns only: the
     # rendered street has no return on a cell border, so even turns keep every cluster.
     return ReferenceClusters(ground=ReferenceGround(), within_roi=True)(frame)
@@ -98,17 +100,28 @@ def test_a_component_that_returns_boxes_is_told_what_is_wrong() -> None:
     ("script", "args", "error"),
     [
         ("sklearn_hdbscan_row_order.py", (), "AssertionError"),
-        ("sklearn_hdbscan_epsilon_crash.py", ("velodyne/000001.bin",), "TypeError: only 0-dimensional"),
+        (
+            "sklearn_hdbscan_epsilon_crash.py",
+            ("velodyne/000001.bin",),
+            "TypeError: only 0-dimensional",
+        ),
     ],
 )
-def test_the_findings_reproducers_still_reproduce(script: str, args: tuple[str, ...], error: str) -> None:
+def test_the_findings_reproducers_still_reproduce(
+    script: str, args: tuple[str, ...], error: str
+) -> None:
     # Each runs with scikit-learn and numpy alone; once upstream fixes a defect, its script
     # exits 0 and this test says so: then update docs/findings.
     pytest.importorskip("sklearn")
-    paths = [str(conftest.shared_data_path("kitti_openpcdet", "training", *arg.split("/"))) for arg in args]
+    paths = [
+        str(conftest.shared_data_path("kitti_openpcdet", "training", *arg.split("/")))
+        for arg in args
+    ]
     result = subprocess.run(
         [sys.executable, str(ROOT / "docs" / "findings" / script), *paths],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
-    assert result.returncode != 0, f"{script} no longer reproduces: update docs/findings\n{result.stdout}"
+    assert result.returncode != 0, (
+        f"{script} no longer reproduces: update docs/findings\n{result.stdout}"
+    )
     assert error in result.stderr, result.stderr

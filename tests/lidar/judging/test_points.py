@@ -10,7 +10,11 @@ import pytest
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext
-from pytest_metamorphic.lidar.followups.perturb import DuplicatePoints, PermutePoints, RotateAboutSensor
+from pytest_metamorphic.lidar.followups.perturb import (
+    DuplicatePoints,
+    PermutePoints,
+    RotateAboutSensor,
+)
 from pytest_metamorphic.lidar.judging.correspondence import corresponding_points
 from pytest_metamorphic.lidar.judging.points import PointsKeepLabels, changed_clusters
 from pytest_metamorphic.lidar.model.cloud import PointCloud
@@ -69,11 +73,15 @@ def test_returns_near_the_change_are_not_judged_and_those_beyond_are() -> None:
     near = labels.copy()
     near[0] = 1  # 3 m from the noise
     relation = PointsKeepLabels("labels", radius=3.5)
-    verdict = _check(relation, source, followup, PointLabels(labels), PointLabels(np.append(near, 0)))
+    verdict = _check(
+        relation, source, followup, PointLabels(labels), PointLabels(np.append(near, 0))
+    )
     assert verdict.holds and verdict.details["near_change"] == 2  # 3 m and 3.16 m away
     far = labels.copy()
     far[10] = 1
-    verdict = _check(relation, source, followup, PointLabels(labels), PointLabels(np.append(far, 0)))
+    verdict = _check(
+        relation, source, followup, PointLabels(labels), PointLabels(np.append(far, 0))
+    )
     assert not verdict.holds
     assert "the nearest is 10.44 m from the follow-up's change" in verdict.explanation
 
@@ -118,7 +126,9 @@ def test_cluster_ids_do_not_matter_but_merges_splits_and_noise_do() -> None:
 
 def test_a_dbscan_border_point_may_change_sides_only_when_allowed() -> None:
     # Two clusters 1 m apart; the return between them, 0.5 m from each, is a border point.
-    xyz = np.array([[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.7, 0, 0], [1.2, 0, 0], [1.3, 0, 0], [1.4, 0, 0]])
+    xyz = np.array(
+        [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.7, 0, 0], [1.2, 0, 0], [1.3, 0, 0], [1.4, 0, 0]]
+    )
     source = _frame(xyz)
     followup = PermutePoints(1).apply(source)
     order = PermutePoints(1).order(7)
@@ -138,8 +148,14 @@ def test_a_dbscan_border_point_may_change_sides_only_when_allowed() -> None:
 def test_a_followup_that_leaves_nothing_to_judge_says_so() -> None:
     source = _frame(_line(3))
     followup = _frame(_line(3) + 100.0)
-    verdict = _check(PointsKeepLabels("labels"), source, followup, PointLabels([0, 0, 0]), PointLabels([1, 1, 1]))
-    assert verdict.holds and verdict.details["judged_nothing"] and verdict.explanation == "no return judged"
+    verdict = _check(
+        PointsKeepLabels("labels"), source, followup, PointLabels([0, 0, 0]), PointLabels([1, 1, 1])
+    )
+    assert (
+        verdict.holds
+        and verdict.details["judged_nothing"]
+        and verdict.explanation == "no return judged"
+    )
 
 
 @pytest.mark.parametrize(

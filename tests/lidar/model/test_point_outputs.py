@@ -45,7 +45,9 @@ def test_outputs_that_are_not_one_id_per_point_are_refused(value, message) -> No
 
 
 def test_an_output_of_the_wrong_length_names_both_counts() -> None:
-    with pytest.raises(InvalidArgument, match=r"the follow-up output has 2 entries but its input cloud has 3"):
+    with pytest.raises(
+        InvalidArgument, match=r"the follow-up output has 2 entries but its input cloud has 3"
+    ):
         as_point_output(np.array([0, 1]), "clusters", points=3, name="the follow-up output")
 
 

@@ -4,7 +4,8 @@ A ground segmenter is called on a frame and returns
 :class:`~pytest_metamorphic.lidar.model.point_outputs.PointLabels` (``GROUND`` / ``NOT_GROUND``
 for every return); a clusterer returns a
 :class:`~pytest_metamorphic.lidar.model.point_outputs.Partition`. The component relations
-(:func:`pytest_metamorphic.relations.lidar.components.component_relations`) judge them point by point.
+(:func:`pytest_metamorphic.relations.lidar.components.component_relations`) judge them
+point by point.
 
 :mod:`.ground`: Patchwork++ (``pypatchworkpp``), Open3D's RANSAC plane and the reference
 pipeline's own ground stage; :mod:`.clusterers`: scikit-learn's DBSCAN, HDBSCAN and
