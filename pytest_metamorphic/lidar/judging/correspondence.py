@@ -30,7 +30,14 @@ from scipy.spatial import cKDTree
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
 
-__all__ = ["ALIGNED_TOLERANCE", "PointCorrespondence", "align_to_source", "corresponding_points"]
+__all__ = [
+    "ALIGNED_TOLERANCE",
+    "PointCorrespondence",
+    "align_to_source",
+    "corresponding_points",
+    "row_keys",
+    "same_returns",
+]
 
 ALIGNED_TOLERANCE = 1e-3
 """Metres within which a turned or mirrored follow-up point, turned back, is its source
@@ -94,7 +101,7 @@ class PointCorrespondence:
         return ~np.isfinite(distance)
 
 
-def _row_keys(xyz: NDArray[np.float32]) -> NDArray[np.uint64]:
+def row_keys(xyz: NDArray[np.float32]) -> NDArray[np.uint64]:
     """One 64-bit key per row of float32 coordinates (equal rows, equal keys; -0.0 and
     0.0 are one coordinate). Different rows share a key with odds of about 2**-64 per
     pair; :func:`corresponding_points` checks every match."""
@@ -108,12 +115,13 @@ def _row_keys(xyz: NDArray[np.float32]) -> NDArray[np.uint64]:
         )
 
 
-def _exact_origins(source: NDArray[np.float32], followup: NDArray[np.float32]) -> NDArray[np.intp]:
-    """For each follow-up row, a source row with the same coordinates (-1: none)."""
-    keys = _row_keys(source)
+def same_returns(source: NDArray[np.float32], followup: NDArray[np.float32]) -> NDArray[np.intp]:
+    """(m,) intp: for each row of ``followup`` (m, 3), a row of ``source`` (n, 3) with the
+    same float32 coordinates (-1: none)."""
+    keys = row_keys(source)
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
-    wanted = _row_keys(followup)
+    wanted = row_keys(followup)
     at = np.minimum(np.searchsorted(sorted_keys, wanted), max(len(keys) - 1, 0))
     origin = np.where(sorted_keys[at] == wanted, order[at], -1).astype(np.intp)
     found = origin >= 0
@@ -142,9 +150,9 @@ def corresponding_points(
             found = np.isfinite(distance)
             origin[found] = nearest[found]
         else:
-            origin = _exact_origins(source.cloud.xyz, followup.cloud.xyz)
+            origin = same_returns(source.cloud.xyz, followup.cloud.xyz)
     # Equal source points form a group; a match to one of them keeps the whole group.
-    _, group = np.unique(_row_keys(source.cloud.xyz), return_inverse=True)
+    _, group = np.unique(row_keys(source.cloud.xyz), return_inverse=True)
     group = np.asarray(group, dtype=np.intp).reshape(-1)
     kept_groups = np.zeros(int(group.max()) + 1 if len(group) else 0, dtype=bool)
     kept_groups[group[origin[origin >= 0]]] = True
