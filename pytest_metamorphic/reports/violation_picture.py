@@ -21,6 +21,9 @@ def draw_violation(
     """Draw a LiDAR violation's bird's-eye picture into ``folder`` (``birdseye.png``);
     ``(file name or None, a note on why there is none)``."""
     followup = record.minimal_followup
+    kind = getattr(record.source_output, "kind", None)
+    if kind in ("labels", "clusters") and source_spec["kind"] == "frame":
+        return _draw_points(record, folder, kind)
     source_boxes = _boxes_or_none(record.source_output)
     followup_boxes = _boxes_or_none(record.minimal_output)
     if followup_boxes is None or source_boxes is None or source_spec["kind"] != "frame":
@@ -43,6 +46,26 @@ def draw_violation(
         title=_picture_title(record) + moved_back,
     )
     return "birdseye.png", ""
+
+
+def _draw_points(record: Any, folder: Path, kind: str) -> tuple[str | None, str]:
+    """A component's violation: returns coloured by label or cluster, changed ones marked."""
+    try:
+        from pytest_metamorphic.reports.point_picture import draw_point_violation
+    except ImportError as error:  # matplotlib is an optional extra
+        return None, f"no picture: {error}"
+    details = record.minimal_verdict.details
+    draw_point_violation(
+        folder / "points.png",
+        source=record.source,
+        labels=record.source_output.labels,
+        kind=kind,
+        changed=details.get("changed_points", []) if isinstance(details, Mapping) else [],
+        added=_added_points(record.followup.params),
+        minimal=_injected_points(record.minimal_followup.params),
+        title=_picture_title(record),
+    )
+    return "points.png", ""
 
 
 def _boxes_or_none(value: Any) -> list[Any] | None:
