@@ -4,14 +4,14 @@ Every mutant of :mod:`pytest_metamorphic.lidar.systems.perception.mutants` chang
 stage of the reference pipeline (the methods it overrides:
 :data:`~pytest_metamorphic.lidar.systems.perception.trace.STAGE_METHODS`). For each, the
 relations of ``lidar_relations(history=True)`` are run in order, each wrapped by
-``with_stage_blame(..., reference_stages(mutant))``, on the KITTI sweeps and rendered
-streets of ``bench/mutation_score.py`` (one sweep at a time, ``--examples`` derandomized
+``with_stage_blame(..., reference_stages(mutant))``, on KITTI sweeps 0-2 and a rendered
+street of ``bench/mutation_score.py`` (one sweep at a time, ``--examples`` derandomized
 follow-ups each) until one finds a violation; the blamed stage of that (reduced) violation
 is compared with the mutant's. Mutants no relation kills in the budget are listed, not
 counted. Ends with
 ``RESULT mutants=<n> killed=<k> blamed_right=<r> share=<r/k>``.
 
-    python bench/stage_blame.py [--examples 2] [--mutants roi_off_by_one,...]
+    python bench/stage_blame.py [--examples 2] [--sweeps 3] [--streets 1] [--mutants a,b]
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -68,6 +68,7 @@ def first_violation(system: Any, frames: list[Any], examples: int) -> tuple[str,
                 deadline=None,
                 suppress_health_check=list(HealthCheck),
                 print_blob=False,
+                phases=[Phase.explicit, Phase.generate],  # the engine still reduces
             )
             @metamorphic(source=st.just(frame), relations=[relation], followups=1)
             def test(frame: Any) -> Any:
@@ -86,10 +87,12 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--examples", type=int, default=2)
     parser.add_argument("--mutants", default="")
+    parser.add_argument("--sweeps", type=int, default=3, help="KITTI sweeps 0..k-1")
+    parser.add_argument("--streets", type=int, default=1, help="rendered streets")
     options = parser.parse_args(argv)
     warnings.filterwarnings("ignore")
     catalog = FrameCatalog(str(KITTI), roi=kitti_label_region())
-    frames = [catalog[i] for i in range(len(catalog))] + rendered_scenes()
+    frames = [catalog[i] for i in range(options.sweeps)] + rendered_scenes()[: options.streets]
     names = [n.strip() for n in options.mutants.split(",") if n.strip()] or list(MUTANTS)
     started = time.perf_counter()
     killed = right = 0

@@ -34,7 +34,7 @@ what these relations found on the components people compose.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pytest_metamorphic.core.engine import MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
@@ -88,6 +88,17 @@ def _what(kind: PointOutputKind) -> str:
     return "label" if kind == "labels" else "cluster"
 
 
+def _keeping(
+    kind: PointOutputKind, name: str | None, default: str, followup: Any, **judge: Any
+) -> MetamorphicRelation:
+    """A component relation: ``followup``'s follow-ups, judged by :class:`PointsKeepLabels`
+    (``default`` names it, with ``{what}`` for "label" or "cluster")."""
+    what = _what(kind)
+    return lidar_relation(
+        name or default.format(what=what), followup, PointsKeepLabels(kind, **judge)
+    )
+
+
 def reordered_returns(
     kind: PointOutputKind, *, border: float = 0.0, name: str | None = None
 ) -> MetamorphicRelation:
@@ -96,11 +107,12 @@ def reordered_returns(
     ``border`` (partitions): DBSCAN's ``eps``; a border point reachable from two clusters
     may change sides (see :mod:`pytest_metamorphic.lidar.judging.points`).
     """
-    what = _what(kind)
-    return lidar_relation(
-        name or f"points reordered => every return keeps its {what}",
+    return _keeping(
+        kind,
+        name,
+        "points reordered => every return keeps its {what}",
         permutation_invariance().followup,
-        PointsKeepLabels(kind, border=border),
+        border=border,
     )
 
 
@@ -109,11 +121,12 @@ def repeated_returns(
 ) -> MetamorphicRelation:
     """Points repeated (scattered ones, a packet, the whole sweep): every return keeps its
     label or cluster, and a repeated return takes its original's."""
-    what = _what(kind)
-    return lidar_relation(
-        name or f"points repeated => every return keeps its {what}",
+    return _keeping(
+        kind,
+        name,
+        "points repeated => every return keeps its {what}",
         duplication_invariance(max_size=max_size).followup,
-        PointsKeepLabels(kind, border=border),
+        border=border,
     )
 
 
@@ -128,12 +141,15 @@ def noise_locality(
 ) -> MetamorphicRelation:
     """MR1's noise outside the ROI: returns farther than ``radius`` metres from every noise
     point keep their label or cluster (``within="roi"``: only those in the ROI judged)."""
-    what = _what(kind)
     _check_noise(n, 1000)
-    return lidar_relation(
-        name or f"noise outside ROI => returns beyond {radius:g} m keep their {what}",
+    return _keeping(
+        kind,
+        name,
+        f"noise outside ROI => returns beyond {radius:g} m keep their {{what}}",
         mr1_subset(n=n).followup,
-        PointsKeepLabels(kind, radius=radius, within=within, border=border),
+        radius=radius,
+        within=within,
+        border=border,
     )
 
 
@@ -149,11 +165,14 @@ def removal_locality(
     :func:`~pytest_metamorphic.relations.lidar.object_removal`'s follow-up): returns
     farther than ``radius`` metres from its returns and from the re-cast ones keep their
     label or cluster."""
-    what = _what(kind)
-    return lidar_relation(
-        name or f"an object removed => returns beyond {radius:g} m keep their {what}",
+    return _keeping(
+        kind,
+        name,
+        f"an object removed => returns beyond {radius:g} m keep their {{what}}",
         object_removal(scope="all").followup,
-        PointsKeepLabels(kind, radius=radius, within=within, border=border),
+        radius=radius,
+        within=within,
+        border=border,
     )
 
 
@@ -164,11 +183,13 @@ def turned_returns(
     label or cluster. Only for components that claim this symmetry (a grid anchored at the
     sensor, a neighbourhood search); zone models with sector counts that are no multiple
     of four do not."""
-    what = _what(kind)
-    return lidar_relation(
-        name or f"cloud turned => every return keeps its {what}",
+    return _keeping(
+        kind,
+        name,
+        "cloud turned => every return keeps its {what}",
         rotation_equivariance().followup,
-        PointsKeepLabels(kind, border=border, boundary_margin=EDGE_MARGIN),
+        border=border,
+        boundary_margin=EDGE_MARGIN,
     )
 
 
@@ -177,11 +198,13 @@ def mirrored_returns(
 ) -> MetamorphicRelation:
     """Cloud and ROI mirrored (y -> -y): every return keeps its label or cluster (a
     component with no preferred side)."""
-    what = _what(kind)
-    return lidar_relation(
-        name or f"cloud mirrored => every return keeps its {what}",
+    return _keeping(
+        kind,
+        name,
+        "cloud mirrored => every return keeps its {what}",
         mirror_symmetry().followup,
-        PointsKeepLabels(kind, border=border, boundary_margin=EDGE_MARGIN),
+        border=border,
+        boundary_margin=EDGE_MARGIN,
     )
 
 
