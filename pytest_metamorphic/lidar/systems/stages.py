@@ -58,6 +58,9 @@ __all__ = ["Blame", "BlamedRelation", "Stage", "StageOutput", "StagedPipeline", 
 
 StageKind = Literal["labels", "clusters", "boxes"]
 
+_EDGE = 0.5
+"""Metres from the ROI's edge within which a turned or mirrored follow-up's returns are not
+compared (its ROI is rasterised afresh)."""
 _TOUCH = 0.5
 """Metres: a box whose footprint lies this near a return the follow-up added or removed
 is not compared (the change touches it; a correct stage may answer differently there)."""
@@ -198,6 +201,12 @@ def blame(
     before_trace, after_trace = pipeline.trace(source), pipeline.trace(followup)
     focus = _Focus.of(before_trace, after_trace, match, source, followup, params)
     shared = match.kept & match.far_from_change(source.cloud.xyz, radius) & focus.returns
+    moved = align_to_source(source.cloud.xyz[:1], params)[1]
+    if moved and source.roi is not None:
+        # A turned or mirrored ROI is rasterised afresh: near its edge the ROI filter may
+        # pass other returns, correctly (the rotation relation's boundary margin).
+        edge = np.asarray(source.roi.boundary_distance(source.cloud.xyz[:, :2]))
+        shared &= edge > _EDGE
     # First by what each stage keeps (a box dropped, a return moved); when every stage
     # keeps everything, by shape (a box turned or resized).
     for strict in (False, True):
