@@ -105,13 +105,14 @@ def main(argv: list[str]) -> int:
             print(f"{name:24s} not killed in the budget (its stage: {sorted(want)})", flush=True)
             continue
         relation, verdict = found
-        blamed = verdict.details.get("stage_blame") if verdict is not None else None
+        details = verdict.details if verdict is not None else {}
+        blamed = details.get("stage_blame")
         killed += 1
         ok = blamed in want
         right += ok
         print(
             f"{name:24s} {'ok ' if ok else 'BAD'} blamed {blamed!s:15s} its stage {sorted(want)}; "
-            f"by {relation!r}: {verdict.details.get('stage_difference', '') if verdict else ''}",
+            f"by {relation!r}: {details.get('stage_difference', '')}",
             flush=True,
         )
     share = right / killed if killed else 0.0
