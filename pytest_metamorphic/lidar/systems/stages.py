@@ -58,6 +58,8 @@ __all__ = ["Blame", "BlamedRelation", "Stage", "StageOutput", "StagedPipeline", 
 
 StageKind = Literal["labels", "clusters", "boxes"]
 
+_MIN_ADDED = 10
+"""Added returns a filter stage must see before dropping most of them counts."""
 _BORDER_SHARE = 0.001
 """Share of the compared returns that may change label or object after a turn or mirror
 (returns on cell borders) before a stage counts as differing."""
@@ -83,6 +85,9 @@ class StageOutput:
         The stage must pass on only returns inside the ROI.
     labels : bool
         Boxes: compare their labels too.
+    passes : bool
+        Labels: a non-zero value means the stage passed the return on (a filter), so the
+        returns a follow-up added where the violation is should mostly pass.
     """
 
     name: str
@@ -90,6 +95,7 @@ class StageOutput:
     value: Any
     within_roi: bool = False
     labels: bool = True
+    passes: bool = False
 
 
 @dataclass(frozen=True)
@@ -201,7 +207,7 @@ def blame(
         raise InvalidArgument(f"radius={radius!r} must be a number of metres >= 0")
     params = dict(params or {})
     match = corresponding_points(source, followup, params)
-    before_trace, after_trace = pipeline.trace(source), pipeline.trace(followup)
+    before_trace, after_trace = _traces(pipeline, source, followup, params)
     focus = _Focus.of(before_trace, after_trace, match, source, followup, params)
     shared = match.kept & match.far_from_change(source.cloud.xyz, radius) & focus.returns
     if _moves(params) and source.roi is not None:
@@ -213,6 +219,7 @@ def blame(
     # keeps everything, by shape (a box turned or resized).
     for strict in (False, True):
         agreed: list[str] = []
+        reached = focus.new_returns & (match.origin < 0)  # added returns where it is
         for before, after in zip(before_trace, after_trace, strict=True):
             if strict and before.kind == "boxes":
                 difference = _strict_difference(before, after.value, focus, params)
@@ -220,10 +227,31 @@ def blame(
                 difference = _difference(
                     before, after, match, shared, focus, source, followup, params
                 )
+            if not difference and before.passes:
+                difference, reached = _added_dropped(
+                    before, after, reached, source, followup, params
+                )
             if difference:
                 return Blame(before.name, difference, agreed)
             agreed.append(before.name)
     return Blame(None, f"{len(agreed)} stage(s) agree where the violation is", agreed)
+
+
+def _traces(
+    pipeline: Any, source: Frame, followup: Frame, params: Mapping[str, Any]
+) -> tuple[list[StageOutput], list[StageOutput]]:
+    """The stages' outputs on both sides; a history follow-up (``params["history"]``, an
+    object with ``inputs(frame)``) replays as the engine ran it: the source twice, the
+    earlier sweeps, then the follow-up."""
+    history = params.get("history")
+    earlier = getattr(history, "inputs", None)
+    if not callable(earlier):
+        return pipeline.trace(source), pipeline.trace(followup)
+    pipeline.trace(source)
+    before = pipeline.trace(source)
+    for sweep in earlier(source):
+        pipeline.trace(sweep)
+    return before, pipeline.trace(followup)
 
 
 @dataclass(frozen=True)
@@ -252,6 +280,14 @@ class _Focus:
         pairs = matched_pairs(IoUMatcher(0.5, same_label=True), was, now)
         boxes = [box for i, box in enumerate(was) if i not in {p[0] for p in pairs}]
         boxes += [box for j, box in enumerate(now) if j not in {p[1] for p in pairs}]
+        # An object the follow-up put into the sweep (inserted, moved) is where the
+        # violation is even when the pipeline reports it nowhere.
+        boxes += [
+            placed
+            for value in params.values()
+            if isinstance(placed := getattr(value, "box", None), Box)
+            and any(key.startswith(("insert", "relocat")) for key in params)
+        ]
         if not boxes:  # matched one to one, yet the relation failed (a size, a heading)
             boxes = was + now
         grown = [box.grown(_TOUCH) for box in boxes]
@@ -295,6 +331,37 @@ def _difference(
         if len(outside):
             return f"{len(outside)} return(s) added outside the ROI passed it"
     return ""
+
+
+def _added_dropped(
+    before: StageOutput,
+    after: StageOutput,
+    reached: NDArray[np.bool_],
+    source: Frame,
+    followup: Frame,
+    params: Mapping[str, Any],
+) -> tuple[str, NDArray[np.bool_]]:
+    """A stage that drops most of the returns a follow-up added where the violation is (an
+    inserted object's), of those the stages before it passed on; and the returns it passed
+    on. Passed on: a filter's non-zero label, a cluster's member, a box's return."""
+    judged = reached.copy()
+    if before.within_roi and source.roi is not None:
+        aligned, _ = align_to_source(followup.cloud.xyz, params)
+        judged &= np.asarray(source.roi.contains(aligned[:, :2], method="exact"), dtype=bool)
+    if after.kind == "boxes":
+        passed = np.zeros(len(judged), dtype=bool)
+        rows = np.flatnonzero(judged)
+        for box in after.value:
+            passed[rows] |= box.contains(followup.cloud.xyz[rows])
+    elif after.kind == "clusters":
+        passed = judged & (after.value >= 0)
+    else:
+        passed = judged & (after.value != 0)
+    count, dropped = int(np.count_nonzero(judged)), int(np.count_nonzero(judged & ~passed))
+    if count >= _MIN_ADDED and dropped * 2 > count:
+        what = f"{dropped} of {count} returns the follow-up added where the violation is dropped"
+        return what, passed
+    return "", reached & passed if after.kind != "boxes" else reached
 
 
 def _moves(params: Mapping[str, Any]) -> bool:

@@ -97,22 +97,24 @@ class ReferenceStages:
         ones = np.ones(len(sweep), dtype=np.int64)
         objects = _on_returns(keys, obstacles, np.asarray(clusters.labels) + 1) - 1
         return [
-            StageOutput("input", "labels", _on_returns(keys, sweep, ones)),
+            StageOutput("input", "labels", _on_returns(keys, sweep, ones), passes=True),
             StageOutput(
                 "roi filter",
                 "labels",
                 _on_returns(keys, in_roi, ones[: len(in_roi)]),
                 within_roi=True,
+                passes=True,
             ),
             StageOutput(
                 "ground removal",
                 "labels",
                 _on_returns(keys, obstacles, ones[: len(obstacles)]),
                 within_roi=True,
+                passes=True,
             ),
-            StageOutput("segmentation", "clusters", objects),
-            StageOutput("objects", "boxes", list(built)),
-            StageOutput("output", "boxes", list(reported)),
+            StageOutput("segmentation", "clusters", objects, passes=True),
+            StageOutput("objects", "boxes", list(built), passes=True),
+            StageOutput("output", "boxes", list(reported), passes=True),
         ]
 
 
