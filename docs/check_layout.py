@@ -38,6 +38,8 @@ PAGES = [
     "lidar.html",
     "lidar-relations.html",
     "detectors.html",
+    "components.html",
+    "findings/README.html",
     "campaigns.html",
     "soundness.html",
     "power.html",
