@@ -15,15 +15,19 @@ from hypothesis import strategies as st
 import conftest
 from pytest_metamorphic import MetamorphicViolation, metamorphic
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.relations import CheckContext
 from pytest_metamorphic.lidar.judging.points import PointsKeepLabels
+from pytest_metamorphic.lidar.judging.relative import RelativeScore, truth_score
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.point_outputs import Partition, PointLabels
 from pytest_metamorphic.lidar.systems.components import ReferenceClusters, ReferenceGround
 from pytest_metamorphic.relations.lidar.components import (
     component_relations,
     noise_locality,
+    relative_relations,
     reordered_returns,
 )
+from tests.core.lidar_cases import labelled_kitti
 from tests.core.lidar_cases import street as render_street
 
 ROOT = Path(__file__).resolve().parent.parent.parent
@@ -125,3 +129,37 @@ def test_the_findings_reproducers_still_reproduce(
         f"{script} no longer reproduces: update docs/findings\n{result.stdout}"
     )
     assert error in result.stderr, result.stderr
+
+
+def test_the_relative_score_judges_a_component_against_the_labels_on_both_sides() -> None:
+    # semLidarFuzz's metric on a labelled KITTI sweep: the reference ground stage calls
+    # three quarters of the labelled objects' returns not ground (their lowest are ground).
+    frame = labelled_kitti(1)
+    score, objects = truth_score(frame, ReferenceGround()(frame), "labels")
+    assert objects >= 2 and 0.7 < score <= 1.0
+    names = [r.name for r in relative_relations("labels", symmetric=True)]
+    assert names[0] == "points reordered => score falls by at most 0.05" and len(names) == 6
+    with pytest.raises(InvalidArgument, match=r"tolerance=1\.5 must be a number in"):
+        RelativeScore("labels", tolerance=1.5)
+    empty = frame.with_cloud(frame.cloud[:0])
+    verdict = RelativeScore("labels").check(
+        PointLabels([]), PointLabels([]), CheckContext(empty, empty)
+    )
+    assert verdict.holds and verdict.details["judged_nothing"]
+    # Every object called ground after the follow-up: the score falls from ~1 to 0.
+    everything_ground = PointLabels(np.ones(len(frame.cloud), dtype=int))
+    verdict = RelativeScore("labels").check(
+        ReferenceGround()(frame), everything_ground, CheckContext(frame, frame)
+    )
+    assert not verdict.holds and "score 0.000 after the follow-up" in verdict.explanation
+
+
+@FAST
+@metamorphic(
+    source=st.just(1).map(labelled_kitti),
+    relations=relative_relations("labels", symmetric=True),
+)
+def test_the_reference_ground_stage_keeps_its_score_on_a_labelled_sweep(
+    frame: Frame,
+) -> PointLabels:
+    return ReferenceGround()(frame)

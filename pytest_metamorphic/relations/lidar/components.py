@@ -34,11 +34,13 @@ what these relations found on the components people compose.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Literal
 
 from pytest_metamorphic.core.engine import MetamorphicRelation
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.judging.points import PointsKeepLabels
+from pytest_metamorphic.lidar.judging.relative import RelativeScore
 from pytest_metamorphic.lidar.model.point_outputs import PointOutputKind
 from pytest_metamorphic.relations.lidar._common import lidar_relation
 from pytest_metamorphic.relations.lidar.geometry import mirror_symmetry, rotation_equivariance
@@ -61,6 +63,7 @@ __all__ = [
     "component_relations",
     "mirrored_returns",
     "noise_locality",
+    "relative_relations",
     "removal_locality",
     "reordered_returns",
     "repeated_returns",
@@ -255,3 +258,23 @@ def component_relations(
     if history:
         relations.append(repeated_sweep(kind, border=border))
     return relations
+
+
+def relative_relations(
+    kind: PointOutputKind, *, tolerance: float = 0.05, symmetric: bool = False
+) -> list[MetamorphicRelation]:
+    """The follow-ups of :func:`component_relations` (no history), judged by semLidarFuzz's
+    relative metric where the sweeps have labelled boxes: the component's score against
+    the follow-up's labels may fall at most ``tolerance`` below its score against the
+    source's (:class:`~pytest_metamorphic.lidar.judging.relative.RelativeScore`). For
+    components that are not exact: an imperfect one passes as long as no change makes it
+    worse."""
+    judge = RelativeScore(kind, tolerance=tolerance)
+    return [
+        dataclasses.replace(
+            relation,
+            name=f"{relation.name.split(' => ')[0]} => score falls by at most {tolerance:g}",
+            relation=judge,
+        )
+        for relation in component_relations(kind, symmetric=symmetric, history=False)
+    ]
