@@ -29,11 +29,13 @@ from scipy.spatial import cKDTree
 
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 
 __all__ = [
     "ALIGNED_TOLERANCE",
     "PointCorrespondence",
     "align_to_source",
+    "box_to_source",
     "corresponding_points",
     "row_keys",
     "same_returns",
@@ -66,6 +68,18 @@ def align_to_source(
         out[:, 1] = -out[:, 1]
         moved = True
     return out, moved
+
+
+def box_to_source(box: Box, params: Mapping[str, Any]) -> Box:
+    """A follow-up box in the source's frame: :func:`align_to_source` for boxes."""
+    if "shift_x_m" in params or "shift_y_m" in params:
+        dx, dy = float(params.get("shift_x_m", 0.0)), float(params.get("shift_y_m", 0.0))
+        box = box.translated(-dx, -dy)
+    if "theta_deg" in params:
+        box = box.rotated(-math.radians(float(params["theta_deg"])))
+    if "mirrored" in params:
+        box = box.mirrored()
+    return box
 
 
 @dataclass(frozen=True)
@@ -115,10 +129,14 @@ def row_keys(xyz: NDArray[np.float32]) -> NDArray[np.uint64]:
         )
 
 
-def same_returns(source: NDArray[np.float32], followup: NDArray[np.float32]) -> NDArray[np.intp]:
+def same_returns(
+    source: NDArray[np.float32],
+    followup: NDArray[np.float32],
+    keys: NDArray[np.uint64] | None = None,
+) -> NDArray[np.intp]:
     """(m,) intp: for each row of ``followup`` (m, 3), a row of ``source`` (n, 3) with the
-    same float32 coordinates (-1: none)."""
-    keys = row_keys(source)
+    same float32 coordinates (-1: none). ``keys``: ``row_keys(source)``, when known."""
+    keys = row_keys(source) if keys is None else keys
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
     wanted = row_keys(followup)
@@ -141,6 +159,7 @@ def corresponding_points(
             )
     source_xyz = source.cloud.xyz.astype(np.float64)
     followup_xyz, moved = align_to_source(followup.cloud.xyz, params)
+    keys = row_keys(source.cloud.xyz)
     origin = np.full(len(followup_xyz), -1, dtype=np.intp)
     if len(source_xyz) and len(followup_xyz):
         if moved:
@@ -150,9 +169,9 @@ def corresponding_points(
             found = np.isfinite(distance)
             origin[found] = nearest[found]
         else:
-            origin = same_returns(source.cloud.xyz, followup.cloud.xyz)
+            origin = same_returns(source.cloud.xyz, followup.cloud.xyz, keys)
     # Equal source points form a group; a match to one of them keeps the whole group.
-    _, group = np.unique(row_keys(source.cloud.xyz), return_inverse=True)
+    _, group = np.unique(keys, return_inverse=True)
     group = np.asarray(group, dtype=np.intp).reshape(-1)
     kept_groups = np.zeros(int(group.max()) + 1 if len(group) else 0, dtype=bool)
     kept_groups[group[origin[origin >= 0]]] = True

@@ -24,6 +24,7 @@ import numpy as np
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import points_in_boxes
 from pytest_metamorphic.lidar.model.point_outputs import (
     NOISE,
     NOT_GROUND,
@@ -42,14 +43,13 @@ def object_scores(frame: Frame, output: Any, kind: PointOutputKind) -> list[floa
     module docstring says which); None for a box that is no car, pedestrian or cyclist or
     holds fewer than 5 returns."""
     labels = as_point_output(output, kind, points=len(frame.cloud), name="the output").labels
-    xyz = frame.cloud.xyz
+    held_rows = points_in_boxes(frame.cloud.xyz, frame.boxes)
     scores: list[float | None] = []
-    for box in frame.boxes:
-        inside = box.contains(xyz) if box.label in _OBJECTS else np.zeros(0, dtype=bool)
-        if np.count_nonzero(inside) < _MIN_RETURNS:
+    for box, rows in zip(frame.boxes, held_rows, strict=True):
+        if box.label not in _OBJECTS or len(rows) < _MIN_RETURNS:
             scores.append(None)
             continue
-        held = labels[inside]
+        held = labels[rows]
         if kind == "labels":
             scores.append(float(np.mean(held == NOT_GROUND)))
         else:

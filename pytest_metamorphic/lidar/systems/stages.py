@@ -35,7 +35,6 @@ A stage's output is one of
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -49,6 +48,7 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.judging.correspondence import (
     PointCorrespondence,
     align_to_source,
+    box_to_source,
     corresponding_points,
 )
 from pytest_metamorphic.lidar.judging.points import changed_clusters
@@ -281,7 +281,7 @@ class _Focus:
         if not last:  # no boxes: the whole sweep
             return _Focus([], np.ones(len(source.cloud), bool), np.ones(len(followup.cloud), bool))
         was = list(before[last[-1]].value)
-        now = [_aligned(box, params) for box in after[last[-1]].value]
+        now = [box_to_source(box, params) for box in after[last[-1]].value]
         pairs = matched_pairs(IoUMatcher(0.5, same_label=True), was, now)
         boxes = [box for i, box in enumerate(was) if i not in {p[0] for p in pairs}]
         boxes += [box for j, box in enumerate(now) if j not in {p[1] for p in pairs}]
@@ -375,18 +375,6 @@ def _moves(params: Mapping[str, Any]) -> bool:
     return align_to_source(np.zeros((0, 3)), params)[1]
 
 
-def _aligned(box: Box, params: Mapping[str, Any]) -> Box:
-    """A follow-up box in the source's frame (undoing a shift, a turn, a mirror)."""
-    if "shift_x_m" in params or "shift_y_m" in params:
-        dx, dy = float(params.get("shift_x_m", 0.0)), float(params.get("shift_y_m", 0.0))
-        box = box.translated(-dx, -dy)
-    if "theta_deg" in params:
-        box = box.rotated(-math.radians(float(params["theta_deg"])))
-    if "mirrored" in params:
-        box = box.mirrored()
-    return box
-
-
 def _box_difference(
     before: StageOutput,
     after: list[Box],
@@ -426,7 +414,7 @@ def _box_difference(
 
 
 def _overlaps(box: Box, focus: _Focus, params: Mapping[str, Any]) -> bool:
-    aligned = _aligned(box, params) if params else box
+    aligned = box_to_source(box, params) if params else box
     return any(aligned.iou_bev(other) > 0 for other in focus.boxes)
 
 
@@ -460,7 +448,7 @@ def _strict_difference(
     """Boxes overlapping the violation, each matched one to one by bird's-eye IoU >= 0.5
     (and label): for violations no box was lost in (a turned or resized box)."""
     was = [box for box in before.value if _overlaps(box, focus, {})]
-    now = [_aligned(box, params) for box in after if _overlaps(box, focus, params)]
+    now = [box_to_source(box, params) for box in after if _overlaps(box, focus, params)]
     pairs = matched_pairs(IoUMatcher(0.5, same_label=before.labels), was, now)
     lost, gained = len(was) - len(pairs), len(now) - len(pairs)
     if not (lost or gained):
