@@ -1,31 +1,35 @@
-"""The learned detector under test: its quality, the paper's MR1 table on it, batch speed.
+"""The learned detector under test: its quality on real sweeps, the paper's MR1 table on
+real sweeps, batch speed.
 
 The system is :class:`~pytest_metamorphic.lidar.systems.perception.cnnseg.CNNSegmentation`, the
-project's Apollo-style CNN segmentation (trained here on rendered scenes, run with
-onnxruntime on the CPU). Three parts, each printed as a table:
+project's Apollo-style CNN segmentation (trained here on rendered streets, run with
+onnxruntime). Parts, each printed as a table:
 
-1. **Quality**: recall and precision per class at BEV IoU 0.5 on ``--held-out`` rendered
-   scenes no training scene shares a seed with (objects within 40 m with >= 10 returns),
-   for features from the whole sweep and from the ROI only, and on the six labelled KITTI
-   sweeps (the camera wedge as ROI; a model trained on rendered streets, so expect less).
-2. **MR1** (Zhou & Sun's protocol): ``--sources`` rendered scenes (the campaigns' default
-   street scenes), 10 / 100 / 1000 points outside the ROI, one follow-up each, then the
-   six KITTI sweeps with ``--kitti-followups`` follow-ups per size, with
+1. **Quality** (``quality``): recall and precision per class at BEV IoU 0.5 (objects with
+   >= 10 returns) and false "cars" per sweep, on every labelled real sweep of the shared
+   data: the six KITTI training sweeps (``kitti_openpcdet``) and KITTI 000134
+   (``kitti_pointpillars_demo/val``), with KITTI's camera wedge as ROI (its labels cover
+   nothing else), within 40 m and within the grid's 70 m; then ``--held-out`` rendered
+   scenes of the training distribution no training scene shares a seed with. None of
+   the real sweeps was used in training or to choose anything about it.
+2. **MR1 on real sweeps** (``mr1``, Zhou & Sun's protocol): the nine real KITTI sweeps of
+   the shared data (the seven above, mmdetection3d's 000008 and PointPillars' testing
+   000002; labels are not needed), 10 / 100 / 1000 points outside the camera wedge,
+   ``--real-followups`` follow-ups per sweep and size (112: 1008 pairs per size), with
    ``full_cloud=True`` (Apollo's ``use_full_cloud``) and ``False``, beside the paper's
-   2.7 / 12.1 / 33.5 %. Default ROI scope (obstacles wholly inside the ROI are judged);
-   strict MR1 with the learned tolerance (a judged obstacle is lost when no follow-up
-   obstacle of its class has its centre within 0.5 m;
-   :mod:`pytest_metamorphic.lidar.judging.tolerance`).
+   2.7 / 12.1 / 33.5 %. Default ROI scope; strict MR1 with the learned tolerance.
+   ``--sources N`` adds the same on N rendered scenes (``mr1-rendered``).
    Run in ``--workers`` processes (shards merge to the one-process result).
-3. **Batches**: the same MR1 campaign shape over ``--batch-sources`` pre-rendered scenes
-   (rendering excluded), through the engine (``run_campaign``) with the detector taking
-   batches of 1 and of 8 (:mod:`pytest_metamorphic.core.batching`); frames per second and
-   what the engine adds per frame (campaign time minus the detector's own time). After
-   an untimed pass (caches warm), batch 1 and 8 alternate twice; the faster run counts.
+3. **Batches** (``batches``): an MR1 campaign over ``--batch-sources`` pre-rendered scenes
+   through the engine with the detector taking batches of 1 and of 8; frames per
+   second and what the engine adds per frame. After an untimed pass, batch 1 and 8
+   alternate twice; the faster run counts.
 
-Ends with ``RESULT car_recall=... batch_speedup=... mr1_full_1000=... mr1_roi_1000=...``.
+Ends with ``RESULT kitti_car_recall=... kitti_false_cars_per_sweep=... mr1_full_1000=...
+mr1_roi_1000=...`` (recall and false cars within the grid's 70 m; the MR1 keys are the
+paper's check, |O| > |O'|, on the real sweeps).
 
-    python bench/learned.py [--sources N] [--held-out N] [--workers N] [--threads N]
+    python bench/learned.py [--parts quality,mr1,batches] [--workers N] [--model PATH]
 """
 
 from __future__ import annotations
@@ -48,7 +52,6 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pytest_metamorphic.core.campaign import (  # noqa: E402
-    Campaign,
     CampaignResult,
     merge_results,
     run_campaign,
@@ -56,9 +59,12 @@ from pytest_metamorphic.core.campaign import (  # noqa: E402
 from pytest_metamorphic.core.intervals import wilson  # noqa: E402
 from pytest_metamorphic.lidar.campaign import mr1_campaign  # noqa: E402
 from pytest_metamorphic.lidar.campaign.sources import synthetic_frames  # noqa: E402
+from pytest_metamorphic.lidar.io.bin import read_bin  # noqa: E402
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402
+from pytest_metamorphic.lidar.io.kitti import read_kitti_labels  # noqa: E402
 from pytest_metamorphic.lidar.judging.evaluation import Evaluation, kitti_label_region  # noqa: E402
 from pytest_metamorphic.lidar.judging.tolerance import LEARNED  # noqa: E402
+from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg.data import held_out_frame  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg.quality import detection_quality  # noqa: E402
@@ -66,58 +72,101 @@ from pytest_metamorphic.reports.campaign import format_table  # noqa: E402
 
 DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
 KITTI = DATA / "kitti_openpcdet" / "training"
+VAL = DATA / "kitti_pointpillars_demo" / "val"
+UNLABELLED = (DATA / "mmdet3d_demo" / "kitti" / "000008.bin",
+              DATA / "kitti_pointpillars_demo" / "test" / "000002.bin")  # fmt: skip
 PAPER = {10: 2.7, 100: 12.1, 1000: 33.5}  # |O| > |O'| in % (Zhou & Sun, CACM 2019)
 CLASSES = ("car", "pedestrian", "cyclist")
+GRID_RANGE = 70.0
 
 
-def _quality_rows(name: str, score: Evaluation) -> list[str]:
+def _detector(full_cloud: bool, model: Any, **options: Any) -> CNNSegmentation:
+    return CNNSegmentation(full_cloud, network=model, **options)
+
+
+def labelled_sweeps() -> list[Frame]:
+    """Every labelled real sweep of the shared data, KITTI's camera wedge as ROI."""
+    roi = kitti_label_region(max_range=GRID_RANGE)
+    frames = list(FrameCatalog(KITTI, roi=roi)) if KITTI.is_dir() else []
+    if (VAL / "000134.bin").is_file():
+        boxes = read_kitti_labels(VAL / "000134_gt.txt", VAL / "000134.txt")
+        frames.append(Frame(read_bin(VAL / "000134.bin"), roi=roi, boxes=tuple(boxes),
+                            source=str(VAL / "000134.bin")))  # fmt: skip
+    return frames
+
+
+class RealSweeps:
+    """MR1's sources: the labelled sweeps and the unlabelled KITTI crops, in turn."""
+
+    def __init__(self) -> None:
+        self.paths = [*sorted((KITTI / "velodyne").glob("*.bin")), VAL / "000134.bin",
+                      *UNLABELLED]  # fmt: skip
+        self.paths = [path for path in self.paths if path.is_file()]
+        self.roi = kitti_label_region(max_range=GRID_RANGE)
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def __call__(self, rng: np.random.Generator, index: int) -> Frame:
+        path = self.paths[index % len(self.paths)]
+        return Frame(read_bin(path), roi=self.roi, source=str(path))
+
+
+def _quality_rows(name: str, score: Evaluation, sweeps: int | None = None) -> list[str]:
     rows = []
     for label in CLASSES:
         s = score[label]  # type: ignore[index]
         recall = "n/a" if s.recall is None else f"{s.recall:.3f}"
         precision = "n/a" if s.precision is None else f"{s.precision:.3f}"
         truth = s.true_positives + s.false_negatives
-        rows.append(f"{name:<34} {label:<11} {truth:>6} {recall:>7} {precision:>9}")
+        false = f"{s.false_positives / sweeps:.2f}" if sweeps else ""
+        rows.append(f"{name:<40} {label:<11} {truth:>6} {s.true_positives:>6} {recall:>7} "
+                    f"{precision:>9} {false:>10}")  # fmt: skip
     return rows
 
 
-def quality(held_out: int) -> float:
-    print("== quality: recall / precision per class, BEV IoU >= 0.5, within 40 m ==")
-    print(f"{'frames':<34} {'class':<11} {'truth':>6} {'recall':>7} {'precision':>9}")
-    car_recall = float("nan")
-    for full_cloud in (True, False):
-        detector = CNNSegmentation(full_cloud)
-        frames = (held_out_frame(i) for i in range(held_out))
-        score = detection_quality(detector, frames)
-        name = f"{held_out} held-out rendered, full={full_cloud}"
-        print("\n".join(_quality_rows(name, score)))
-        if full_cloud:
-            car_recall = score["car"].recall or 0.0
-    if KITTI.is_dir():
-        catalog = FrameCatalog(KITTI, roi=kitti_label_region())
+def quality(held_out: int, model: Any) -> dict[str, float]:
+    print("== quality: BEV IoU >= 0.5, one to one, objects with >= 10 returns ==")
+    print(f"{'frames':<40} {'class':<11} {'truth':>6} {'found':>6} {'recall':>7} "
+          f"{'precision':>9} {'false/sweep':>10}")  # fmt: skip
+    keys: dict[str, float] = {}
+    frames = labelled_sweeps()
+    for reach in (40.0, GRID_RANGE):
         for full_cloud in (True, False):
-            score = detection_quality(
-                CNNSegmentation(full_cloud), (catalog.load(i) for i in range(len(catalog)))
-            )
-            print(
-                "\n".join(_quality_rows(f"{len(catalog)} KITTI sweeps, full={full_cloud}", score))
-            )
-    else:
-        print(f"(KITTI sweeps not found at {KITTI}: skipped)")
-    return car_recall
+            score = detection_quality(_detector(full_cloud, model), frames, max_range=reach)
+            name = f"{len(frames)} real KITTI sweeps, {reach:.0f} m, full={full_cloud}"
+            print("\n".join(_quality_rows(name, score, len(frames))))
+            if full_cloud and reach == GRID_RANGE:
+                car = score["car"]
+                keys["kitti_car_recall"] = car.recall or 0.0
+                keys["kitti_false_cars_per_sweep"] = car.false_positives / len(frames)
+                keys["kitti_cars"] = car.true_positives + car.false_negatives
+            if full_cloud and reach == 40.0:
+                keys["kitti_car_recall_40"] = score["car"].recall or 0.0
+    for full_cloud in (True, False):
+        score = detection_quality(
+            _detector(full_cloud, model), (held_out_frame(i) for i in range(held_out))
+        )
+        name = f"{held_out} held-out rendered, 40 m, full={full_cloud}"
+        print("\n".join(_quality_rows(name, score, held_out)))
+        if full_cloud:
+            keys["rendered_car_recall"] = score["car"].recall or 0.0
+    return keys
 
 
-def _campaign(full_cloud: bool, where: str, sources: int, seed: int, followups: int) -> Campaign:
-    frames = FrameCatalog(KITTI, roi=kitti_label_region()) if where == "kitti" else None
+def _campaign(full_cloud: bool, where: str, sources: int | None, seed: int, followups: int,
+              model: Any) -> Any:  # fmt: skip
+    frames = RealSweeps() if where == "real" else None
     return mr1_campaign(
-        CNNSegmentation(full_cloud), name=f"MR1 cnnseg {where} full_cloud={full_cloud}",
-        frames=frames, sources=sources, seed=seed, followups=followups, matcher=LEARNED.kept,
+        _detector(full_cloud, model), name=f"MR1 cnnseg {where} full_cloud={full_cloud}",
+        frames=frames, sources=len(frames) if frames else sources, seed=seed,
+        followups=followups, matcher=LEARNED.kept,
     )  # fmt: skip
 
 
-def _shard(args: tuple[bool, str, int | None, int, int, int, int]) -> CampaignResult:
-    full_cloud, where, sources, seed, followups, shard, shards = args
-    campaign = _campaign(full_cloud, where, sources, seed, followups)  # type: ignore[arg-type]
+def _shard(args: tuple[Any, ...]) -> CampaignResult:
+    full_cloud, where, sources, seed, followups, model, shard, shards = args
+    campaign = _campaign(full_cloud, where, sources, seed, followups, model)
     return run_campaign(campaign, shard=shard, shards=shards)
 
 
@@ -128,16 +177,16 @@ def _rate(k: int, n: int) -> str:
     return f"{100 * k / n:5.1f} % [{100 * rate.low:.1f}, {100 * rate.high:.1f}]"
 
 
-def mr1(
-    where: str, sources: int | None, seed: int, workers: int, followups: int
-) -> dict[bool, CampaignResult]:
-    what = f"{sources} rendered scenes" if where == "rendered" else "the six KITTI sweeps"
-    print(f"\n== MR1 on {what} (seed {seed}, {followups} follow-up(s) per size) ==")
+def mr1(where: str, sources: int | None, seed: int, workers: int, followups: int,
+        model: Any) -> dict[bool, CampaignResult]:  # fmt: skip
+    what = f"{sources} rendered scenes" if where == "rendered" else "nine real KITTI sweeps"
+    print(f"\n== MR1 on {what} (seed {seed}, {followups} follow-up(s) per source and size) ==")
     results = {}
     for full_cloud in (True, False):
         started = time.monotonic()
-        shards = max(workers * 4, 1) if where == "rendered" else 6
-        jobs = [(full_cloud, where, sources, seed, followups, k, shards) for k in range(shards)]
+        shards = max(workers * 4, 1) if where == "rendered" else len(RealSweeps())
+        jobs = [(full_cloud, where, sources, seed, followups, model, k, shards)
+                for k in range(shards)]  # fmt: skip
         with ProcessPoolExecutor(max_workers=workers) as pool:
             result = merge_results(pool.map(_shard, jobs))
         results[full_cloud] = result
@@ -182,9 +231,9 @@ class _Timed:
             self.frames += len(frames)
 
 
-def _timed_run(frames: list[Any], size: int, threads: int) -> tuple[float, float, int]:
+def _timed_run(frames: list[Any], size: int, threads: int, model: Any) -> tuple[float, float, int]:
     """(wall s, detector s, frames) of the MR1 campaign over ``frames`` at batch ``size``."""
-    timed = _Timed(CNNSegmentation(True, threads=threads, batch_size=size), size)
+    timed = _Timed(_detector(True, model, threads=threads, batch_size=size), size)
     campaign = mr1_campaign(timed, name=f"batch {size}", frames=lambda rng, i: frames[i],
                             sources=len(frames))  # fmt: skip
     timed(frames[0])  # onnxruntime builds its session on first use
@@ -194,15 +243,15 @@ def _timed_run(frames: list[Any], size: int, threads: int) -> tuple[float, float
     return time.perf_counter() - started, timed.seconds, timed.frames
 
 
-def batches(sources: int, threads: int) -> float:
+def batches(sources: int, threads: int, model: Any) -> float:
     print(f"\n== batches: MR1 shape over {sources} pre-rendered scenes, ORT threads {threads} ==")
     render = synthetic_frames()
     frames = [render(np.random.default_rng([0, i]), i) for i in range(sources)]
-    _timed_run(frames, 1, threads)  # untimed: every cache (ROI rasters, free cells) warm
+    _timed_run(frames, 1, threads, model)  # untimed: every cache (ROI rasters, free cells) warm
     best: dict[int, tuple[float, float, int]] = {}
     for _ in range(2):
         for size in (1, 8):
-            run = _timed_run(frames, size, threads)
+            run = _timed_run(frames, size, threads, model)
             if size not in best or run[0] < best[size][0]:
                 best[size] = run
     rates = {}
@@ -220,11 +269,12 @@ def batches(sources: int, threads: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sources", type=int, default=1000)
-    parser.add_argument("--held-out", type=int, default=200)
+    parser.add_argument("--sources", type=int, default=0, help="rendered MR1 sources (0: none)")
+    parser.add_argument("--held-out", type=int, default=100)
     parser.add_argument("--batch-sources", type=int, default=40)
-    parser.add_argument("--kitti-followups", type=int, default=50)
+    parser.add_argument("--real-followups", type=int, default=112)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--model", type=Path, default=None, help="an ONNX file (default: shipped)")
     parser.add_argument(
         "--threads", type=int, default=2, help="onnxruntime threads in the batch part"
     )
@@ -236,22 +286,22 @@ def main() -> None:
     parts = set(args.parts.split(","))
     keys: dict[str, float] = {}
     if "quality" in parts:
-        keys["car_recall"] = quality(args.held_out)
+        keys.update(quality(args.held_out, args.model))
     if "batches" in parts:
         # Before the campaigns: their worker processes must not share the cores with it.
-        keys["batch_speedup"] = batches(args.batch_sources, args.threads)
+        keys["batch_speedup"] = batches(args.batch_sources, args.threads, args.model)
     if "mr1" in parts:
-        results = mr1("rendered", args.sources, args.seed, args.workers, 1)
-        if KITTI.is_dir():
-            mr1("kitti", None, args.seed, args.workers, args.kitti_followups)
+        results = mr1("real", None, args.seed, args.workers, args.real_followups, args.model)
         full, roi = results[True].sizes[1000], results[False].sizes[1000]
         keys.update(
             mr1_full_1000=full.fewer / full.pairs,
             mr1_roi_1000=roi.fewer / roi.pairs,
             mr1_full_1000_strict=full.violations / full.pairs,
             mr1_roi_1000_strict=roi.violations / roi.pairs,
-            sources=args.sources,
+            mr1_pairs_1000=full.pairs,
         )
+        if args.sources:
+            mr1("rendered", args.sources, args.seed, args.workers, 1, args.model)
     print("RESULT " + " ".join(f"{key}={value:.4f}" for key, value in keys.items()))
 
 

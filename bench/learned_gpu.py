@@ -1,17 +1,22 @@
-"""The CNN segmentation network's forward pass on a GPU, batch 1 against batch 8.
+"""The whole learned detector on a GPU: frames per second at batch 1 and 8, and its boxes
+against the CPU's.
 
-Needs PyTorch (and a CUDA device for the numbers that matter; without one it measures
-PyTorch on the CPU and says so). The network is the shipped architecture
-(:func:`~pytest_metamorphic.lidar.systems.perception.cnnseg.train.build_network`, 160 x 160 x 6
-inputs) with freshly initialised weights: its cost does not depend on their values. Each
-batch size runs ``--repeat`` timed forward passes after 20 warm-ups, synchronised, in
-float32 and, on a GPU, in bfloat16 autocast; frames per second = batch x passes / time.
+The detector is the shipped
+:class:`~pytest_metamorphic.lidar.systems.perception.cnnseg.CNNSegmentation` with
+``device="cuda"`` (onnxruntime's CUDA provider: ``pip install onnxruntime-gpu``): the
+network runs on the GPU, features, Cluster2D and boxes on the CPU, as in Apollo. Over
+``--frames`` pre-rendered streets of the training distribution (rendering excluded),
+each batch size runs after an untimed warm-up pass; frames per second = frames / wall
+time of ``detect_batch`` calls. The same frames go through the CPU detector: every box
+of one must have a partner of the same class within 0.5 m in the other (the learned
+tolerance profile), counted as ``agree``.
 
-The CPU bench (``bench/learned.py``) measures the whole detector through the engine
-(features, network, clustering, boxes); on a GPU only the network moves there, and this
-bench says how much of the batch speed-up a GPU adds to that part.
+Without a CUDA provider it measures the CPU alone and says so (``gpu=0``).
 
-    python bench/learned_gpu.py [--repeat N]
+    python bench/learned_gpu.py [--frames N] [--threads N]
+
+Ends with ``RESULT gpu=... fps_b1=... fps_b8=... batch_speedup=... cpu_fps_b1=...
+cpu_fps_b8=... agree=...``.
 """
 
 from __future__ import annotations
@@ -20,62 +25,72 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import torch  # noqa: E402
+import onnxruntime  # noqa: E402
 
-from pytest_metamorphic.lidar.systems.perception.cnnseg.features import CHANNELS, GridSpec  # noqa: E402
-from pytest_metamorphic.lidar.systems.perception.cnnseg.train import Exported, build_network  # noqa: E402
+from pytest_metamorphic.lidar.judging.tolerance import LEARNED  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg.data import held_out_frame  # noqa: E402
 
 
-def frames_per_second(network: torch.nn.Module, batch: int, repeat: int, device: str,
-                      autocast: bool) -> float:  # fmt: skip
-    grid = GridSpec()
-    features = torch.rand(batch, len(CHANNELS), grid.size, grid.size, device=device)
-    context = (
-        torch.autocast(device_type="cuda", dtype=torch.bfloat16)
-        if autocast
-        else torch.autocast(device_type=device, enabled=False)
-    )
-    with torch.inference_mode(), context:
-        for _ in range(20):
-            network(features)
-        if device == "cuda":
-            torch.cuda.synchronize()
-        started = time.perf_counter()
-        for _ in range(repeat):
-            network(features)
-        if device == "cuda":
-            torch.cuda.synchronize()
-        elapsed = time.perf_counter() - started
-    return batch * repeat / elapsed
+def frames_per_second(detector: CNNSegmentation, frames: list[Any], batch: int) -> float:
+    """Frames per second of ``detect_batch`` over ``frames`` in batches of ``batch``."""
+    chunks = [frames[i : i + batch] for i in range(0, len(frames), batch)]
+    for chunk in chunks[:2]:  # warm-up: sessions, CUDA kernels, caches
+        detector.detect_batch(chunk)
+    started = time.perf_counter()
+    for chunk in chunks:
+        detector.detect_batch(chunk)
+    return len(frames) / (time.perf_counter() - started)
+
+
+def agreement(first: list[list[Any]], second: list[list[Any]]) -> float:
+    """Share of boxes (both ways) with a partner of their class within 0.5 m."""
+    matched = total = 0
+    for a, b in zip(first, second, strict=True):
+        for left, right in ((a, b), (b, a)):
+            if not left:
+                continue
+            near, _ = LEARNED.kept.pairwise(left, right)
+            matched += int(near.any(axis=1).sum()) if len(right) else 0
+            total += len(left)
+    return matched / total if total else 1.0
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--repeat", type=int, default=200)
+    parser.add_argument("--frames", type=int, default=64)
+    parser.add_argument("--threads", type=int, default=None, help="CPU threads (default all)")
     args = parser.parse_args()
-    device = "cuda" if torch.cuda.is_available() else "cpu"
-    threads = torch.get_num_threads()
-    name = torch.cuda.get_device_name() if device == "cuda" else f"CPU ({threads} threads)"
-    torch.manual_seed(0)
-    network = Exported.wrap(build_network()).eval().to(device)
-    print(f"device: {name}; torch {torch.__version__}")
-    print(f"{'precision':<10} {'batch':>5} {'frames/s':>10} {'ms/frame':>9}")
+    gpu = "CUDAExecutionProvider" in onnxruntime.get_available_providers()
+    frames = [held_out_frame(i) for i in range(args.frames)]
+    cpu = CNNSegmentation(True, device="cpu", threads=args.threads)
+    providers = onnxruntime.get_available_providers()
+    print(f"onnxruntime {onnxruntime.__version__}; providers {providers}")
+    print(f"{args.frames} held-out rendered streets, grid {cpu.grid.size} cells a side")
     rates: dict[tuple[str, int], float] = {}
-    for precision in ("float32", "bfloat16") if device == "cuda" else ("float32",):
-        for batch in (1, 8, 32):
-            rate = frames_per_second(network, batch, args.repeat, device, precision == "bfloat16")
-            rates[precision, batch] = rate
-            print(f"{precision:<10} {batch:>5} {rate:>10.1f} {1000 / rate:>9.3f}")
-    speedup = rates["float32", 8] / rates["float32", 1]
-    print(f"batch 8 / batch 1 (float32): {speedup:.2f}x")
+    detectors = {"cpu": cpu}
+    if gpu:
+        detectors["cuda"] = CNNSegmentation(True, device="cuda", threads=args.threads)
+    for name, detector in detectors.items():
+        for batch in (1, 8):
+            rates[name, batch] = frames_per_second(detector, frames, batch)
+            print(f"{name:<5} batch {batch}: {rates[name, batch]:7.1f} frames/s")
+    agree = 1.0
+    if gpu:
+        on_gpu = detectors["cuda"].network.on_gpu
+        print(f"network on the GPU: {on_gpu}")
+        agree = agreement(cpu.detect_batch(frames), detectors["cuda"].detect_batch(frames))
+        print(f"boxes with a same-class partner within 0.5 m on the other device: {agree:.4f}")
+    device = "cuda" if gpu else "cpu"
     print(
-        f"RESULT gpu={int(device == 'cuda')} batch_speedup={speedup:.3f} "
-        f"ms_per_frame_b1={1000 / rates['float32', 1]:.4f} "
-        f"ms_per_frame_b8={1000 / rates['float32', 8]:.4f}"
+        f"RESULT gpu={int(gpu)} fps_b1={rates[device, 1]:.2f} fps_b8={rates[device, 8]:.2f} "
+        f"batch_speedup={rates[device, 8] / rates[device, 1]:.3f} "
+        f"cpu_fps_b1={rates['cpu', 1]:.2f} cpu_fps_b8={rates['cpu', 8]:.2f} agree={agree:.4f}"
     )
 
 

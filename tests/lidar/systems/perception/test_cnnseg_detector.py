@@ -20,7 +20,7 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg import (
     point_cells,
 )
 
-GRID = GridSpec()
+GRID = GridSpec(size=160, range=40.0)
 GROUND = -1.73
 
 
@@ -77,9 +77,10 @@ def test_a_car_seen_from_behind_is_completed_about_the_predicted_centre() -> Non
     detector = CNNSegmentation(network=network)
     (box,) = detector(PointCloud(_street(_rear_face(15.0, 0.0))))
     assert box.label == "car" and box.score == pytest.approx(0.9)
-    # Length along x: from the face (15) to its mirror image about 17.1 (19.2).
-    assert box.center[:2] == pytest.approx((17.1, 0.0), abs=0.01)
-    assert box.size[:2] == pytest.approx((4.2, 1.8), abs=0.01)
+    # At least the class's mean size (3.9 x 1.6 m), centred on 17.1 as far as the face
+    # allows: the face (15) stays the box's rear, so 15 to 18.9.
+    assert box.center[:2] == pytest.approx((16.95, 0.0), abs=0.01)
+    assert box.size[:2] == pytest.approx((3.9, 1.8), abs=0.01)
     assert abs(math.cos(box.yaw)) == pytest.approx(1.0, abs=1e-6)
     # Its z span is the face's returns more than 0.25 m above the ground (the ground model's
     # tolerance: the face's lowest row, 0.2 m up, counts as ground, like the road under it).
@@ -88,12 +89,24 @@ def test_a_car_seen_from_behind_is_completed_about_the_predicted_centre() -> Non
     assert network.batches == [1]
 
 
-def test_an_implausible_centre_is_capped_at_the_class_size() -> None:
-    # A centre 10 m behind the face: the car is completed to its largest length (5.2 m).
+def test_an_implausible_centre_never_stretches_the_box() -> None:
+    # A centre 10 m behind the face: the car keeps the class's mean length from its face.
     network = FakeNetwork(centre=(25.0, 0.0), region=(14, 19, -2, 2))
     (box,) = CNNSegmentation(network=network)(PointCloud(_street(_rear_face(15.0, 0.0))))
-    assert box.size[0] == pytest.approx(5.2, abs=0.01)
-    assert box.center[0] == pytest.approx(15.0 + 2.6, abs=0.01)
+    assert box.size[0] == pytest.approx(3.9, abs=0.01)
+    assert box.center[0] == pytest.approx(15.0 + 1.95, abs=0.01)
+
+
+def test_a_car_seen_from_the_side_lays_its_length_along_the_side() -> None:
+    # A 3 m long side at y = 4 (the car drives along x), its centre predicted 0.8 m
+    # beyond it: the length lies along the side, the width across it (not 3.9 m across).
+    xs, zs = np.meshgrid(np.linspace(13.5, 16.5, 31), np.linspace(GROUND + 0.4, GROUND + 1.3, 10))
+    side = np.column_stack([xs.ravel(), np.full(xs.size, 4.0), zs.ravel(), np.full(xs.size, 0.5)])
+    network = FakeNetwork(centre=(15.0, 4.8), region=(12, 18, 2, 7))
+    (box,) = CNNSegmentation(network=network)(PointCloud(_street(side)))
+    assert box.size[:2] == pytest.approx((3.9, 1.6), abs=0.01)
+    assert abs(math.cos(box.yaw)) == pytest.approx(1.0, abs=1e-6)
+    assert box.center[:2] == pytest.approx((15.0, 4.8), abs=0.01)
 
 
 def test_class_height_and_size_rules() -> None:

@@ -16,7 +16,7 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg import (
     point_cells,
 )
 
-GRID = GridSpec()  # 160 x 160 cells of 0.5 m over +-40 m
+GRID = GridSpec(size=160, range=40.0)  # 160 x 160 cells of 0.5 m over +-40 m
 
 
 def test_the_grid_maps_rows_to_x_and_columns_to_y_as_apollo_does() -> None:

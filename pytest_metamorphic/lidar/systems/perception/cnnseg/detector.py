@@ -147,6 +147,9 @@ class CNNSegmentation:
     params : CNNSegParams, optional
     threads : int or None
         onnxruntime threads when ``network`` is a path or None (default 1).
+    device : {"cpu", "cuda", "auto"}
+        Where the shipped or given ONNX network runs (:class:`~.network.OnnxNetwork`);
+        features, clustering and boxes stay on the CPU.
     batch_size : int
         Most frames per network call when a campaign or ``@metamorphic(batch=True)``
         test hands it batches (:mod:`pytest_metamorphic.core.batching`).
@@ -168,6 +171,7 @@ class CNNSegmentation:
         params: CNNSegParams | None = None,
         threads: int | None = 1,
         batch_size: int = 8,
+        device: str = "auto",
     ) -> None:
         if not isinstance(full_cloud, bool):
             raise InvalidArgument(f"full_cloud={full_cloud!r} must be True or False")
@@ -181,7 +185,9 @@ class CNNSegmentation:
         # Anything with a ``grid`` and ``predict(features) -> [NetworkOutput]`` will do
         # (an ONNX file by default; a PyTorch module wrapped alike, a fake in tests).
         is_network = hasattr(network, "predict") and hasattr(network, "grid")
-        self.network = network if is_network else OnnxNetwork(network, threads=threads)
+        self.network = (
+            network if is_network else OnnxNetwork(network, threads=threads, device=device)
+        )
 
     def __repr__(self) -> str:
         return f"CNNSegmentation(full_cloud={self.full_cloud})"
@@ -338,6 +344,9 @@ class CNNSegmentation:
         return labels, sorted(boxes, key=box_order)
 
 
+_SIDE_SLACK = 0.2  # metres an outline may exceed a class's largest side (noise, mirrors)
+
+
 def _completed_box(
     xy: NDArray[np.float64],
     yaw: float,
@@ -348,23 +357,20 @@ def _completed_box(
     score: float,
     points: int | None,
 ) -> Box:
-    """MinBox's oriented outline of ``xy``, completed symmetrically about the predicted
-    ``centre`` and capped at the class's largest length (the visible outline is kept)."""
+    """MinBox's oriented outline of ``xy``, completed about the predicted ``centre``.
+
+    A sensor sees one or two sides of an object, so the outline is short of it where it
+    cannot see: a car seen from behind is a 1.8 x 0.3 m outline. Cars are completed to
+    at least the class's mean size (:func:`_car_bounds`); pedestrians and cyclists, whose
+    sizes vary as much as their outlines, symmetrically about the predicted centre
+    (:func:`_mirrored_bounds`). The visible outline is always kept.
+    """
     axes = np.array([[math.cos(yaw), math.sin(yaw)], [-math.sin(yaw), math.cos(yaw)]])
-    projected = xy @ axes.T  # (k, 2): along the heading, across it
+    projected = xy @ axes.T  # (k, 2): along the outline's heading, across it
     middle = axes @ centre
-    cap = max(SIZE_PRIORS[label].high[:2])
-    bounds = []
-    for axis in range(2):
-        lo, hi = float(projected[:, axis].min()), float(projected[:, axis].max())
-        c = float(middle[axis])
-        full_lo, full_hi = min(lo, 2 * c - hi), max(hi, 2 * c - lo)
-        if full_hi - full_lo > max(cap, hi - lo):
-            # The centre is implausibly far: complete to the cap on its side only.
-            length = max(cap, hi - lo)
-            full_lo, full_hi = (lo, lo + length) if c >= (lo + hi) / 2 else (hi - length, hi)
-        bounds.append((full_lo, full_hi))
-    (a0, a1), (b0, b1) = bounds
+    lo, hi = projected.min(axis=0), projected.max(axis=0)
+    complete = _car_bounds if label == "car" else _mirrored_bounds
+    (a0, a1), (b0, b1) = complete(lo, hi, middle, label)
     along, across = (a0 + a1) / 2, (b0 + b1) / 2
     length, width = max(a1 - a0, MIN_EXTENT), max(b1 - b0, MIN_EXTENT)
     x, y = axes.T @ np.array([along, across])
@@ -378,3 +384,52 @@ def _completed_box(
         score=score,
         points=points,
     )
+
+
+Bounds = list[tuple[float, float]]
+
+
+def _mirrored_bounds(lo: NDArray[np.float64], hi: NDArray[np.float64],
+                     middle: NDArray[np.float64], label: Label) -> Bounds:  # fmt: skip
+    """The outline mirrored about the predicted centre, capped at the class's largest
+    length (a centre implausibly far is completed to the cap on its side only)."""
+    cap = max(SIZE_PRIORS[label].high[:2])
+    bounds = []
+    for axis in range(2):
+        low, high, c = float(lo[axis]), float(hi[axis]), float(middle[axis])
+        full_lo, full_hi = min(low, 2 * c - high), max(high, 2 * c - low)
+        if full_hi - full_lo > max(cap, high - low):
+            length = max(cap, high - low)
+            full_lo, full_hi = (
+                (low, low + length) if c >= (low + high) / 2 else (high - length, high)
+            )
+        bounds.append((full_lo, full_hi))
+    return bounds
+
+
+def _car_bounds(lo: NDArray[np.float64], hi: NDArray[np.float64],
+                middle: NDArray[np.float64], label: Label) -> Bounds:  # fmt: skip
+    """Each side at least the class's mean size (at most its largest, unless the outline
+    is longer), centred on the prediction as far as the outline allows. Of the two ways
+    to lay the length along the outline's axes, the one that needs the smaller shift away
+    from the predicted centre wins; a way whose side would be shorter than the outline
+    by more than the class's widest allows is not taken."""
+    prior = SIZE_PRIORS[label]
+    seen_sides = hi - lo
+    best: tuple[float, Bounds] | None = None
+    for turn in (False, True):
+        wanted = (prior.mean[1], prior.mean[0]) if turn else (prior.mean[0], prior.mean[1])
+        largest = (prior.high[1], prior.high[0]) if turn else (prior.high[0], prior.high[1])
+        if best is not None and np.any(seen_sides > np.array(largest) + _SIDE_SLACK):
+            continue
+        shift, bounds = 0.0, []
+        for axis in range(2):
+            length = max(float(seen_sides[axis]), min(wanted[axis], largest[axis]))
+            start = float(middle[axis]) - length / 2
+            start = min(max(start, float(hi[axis]) - length), float(lo[axis]))
+            shift += abs(start + length / 2 - float(middle[axis]))
+            bounds.append((start, start + length))
+        if best is None or shift < best[0] - 1e-9:
+            best = (shift, bounds)
+    assert best is not None
+    return best[1]

@@ -1,4 +1,4 @@
-"""The trained network, run with onnxruntime on the CPU (no PyTorch needed).
+"""The trained network, run with onnxruntime on the CPU or a CUDA GPU (no PyTorch needed).
 
 The ONNX file takes ``features`` (batch, 6, size, size) float32 and returns, per cell:
 ``objectness`` (batch, 1, size, size, sigmoid applied), ``offset`` (batch, 2, size, size:
@@ -22,11 +22,12 @@ from numpy.typing import NDArray
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import CHANNELS, GridSpec
 
-__all__ = ["CLASSES", "DEFAULT_MODEL", "NetworkOutput", "OnnxNetwork"]
+__all__ = ["CLASSES", "DEFAULT_MODEL", "DEVICES", "NetworkOutput", "OnnxNetwork"]
 
 CLASSES = ("car", "pedestrian", "cyclist")
 DEFAULT_MODEL = Path(__file__).resolve().parent / "cnnseg.onnx"
 _OUTPUTS = ("objectness", "offset", "class_prob", "height")
+DEVICES = ("cpu", "cuda", "auto")
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,12 @@ class OnnxNetwork:
     threads : int or None
         onnxruntime's intra-op threads; None lets onnxruntime choose (every core). Use 1
         when several processes share the machine (pytest-xdist, Dask workers).
+    device : {"cpu", "cuda", "auto"}
+        Where the network runs. ``"cuda"`` needs onnxruntime's CUDA provider
+        (``pip install onnxruntime-gpu``) and a GPU, and fails clearly without them;
+        ``"auto"`` takes the GPU when onnxruntime offers one, else the CPU. On a GPU the
+        maps differ from the CPU's by float rounding (the learned tolerance profile
+        absorbs it); runs on one device are deterministic.
 
     Notes
     -----
@@ -56,7 +63,13 @@ class OnnxNetwork:
     travel to Dask workers and process pools.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | None = None, *, threads: int | None = 1):
+    def __init__(
+        self,
+        path: str | os.PathLike[str] | None = None,
+        *,
+        threads: int | None = 1,
+        device: str = "auto",
+    ):
         self.path = Path(DEFAULT_MODEL if path is None else path)
         if not self.path.is_file():
             what = "is not a regular file" if self.path.exists() else "does not exist"
@@ -65,22 +78,30 @@ class OnnxNetwork:
             isinstance(threads, bool) or not isinstance(threads, int) or threads < 1
         ):
             raise InvalidArgument(f"threads={threads!r} must be an int >= 1 or None")
+        if device not in DEVICES:
+            raise InvalidArgument(f"device={device!r} must be one of {DEVICES}")
         self.threads = threads
+        self.device = device
         self._session: Any = None
         self._grid: GridSpec | None = None
 
     def __repr__(self) -> str:
-        return f"OnnxNetwork({str(self.path)!r}, threads={self.threads})"
+        return f"OnnxNetwork({str(self.path)!r}, threads={self.threads}, device={self.device!r})"
 
     def __getstate__(self) -> dict[str, Any]:
         # The shipped model travels as "the shipped model": a worker finds its own copy
         # wherever the package is installed there.
         shipped = self.path == DEFAULT_MODEL
-        return {"path": None if shipped else self.path, "threads": self.threads}
+        return {
+            "path": None if shipped else self.path,
+            "threads": self.threads,
+            "device": self.device,
+        }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.path = DEFAULT_MODEL if state["path"] is None else state["path"]
         self.threads = state["threads"]
+        self.device = state.get("device", "cpu")
         self._session = None
         self._grid = None
 
@@ -88,8 +109,13 @@ class OnnxNetwork:
     def session(self) -> Any:
         """The onnxruntime ``InferenceSession`` (created on first use)."""
         if self._session is None:
-            self._session = _open(self.path, self.threads)
+            self._session = _open(self.path, self.threads, self.device)
         return self._session
+
+    @property
+    def on_gpu(self) -> bool:
+        """Whether the session runs on onnxruntime's CUDA provider."""
+        return "CUDAExecutionProvider" in self.session.get_providers()
 
     @property
     def grid(self) -> GridSpec:
@@ -183,7 +209,25 @@ def _check_input_shape(session: Any, grid: GridSpec, path: str) -> None:
         )
 
 
-def _open(path: Path, threads: int | None) -> Any:
+def _providers(onnxruntime: Any, device: str) -> list[Any]:
+    """onnxruntime's execution providers for ``device``, the CPU always last."""
+    available = onnxruntime.get_available_providers()
+    has_cuda = "CUDAExecutionProvider" in available
+    if device == "cuda" and not has_cuda:
+        raise InvalidArgument(
+            "device='cuda' needs onnxruntime's CUDA provider, which this onnxruntime "
+            f"does not have (it offers {available}): pip install onnxruntime-gpu, on a "
+            "machine with an NVIDIA GPU"
+        )
+    if device == "cpu" or not has_cuda:
+        return ["CPUExecutionProvider"]
+    # Heuristic convolution search: the same algorithms every session, so repeated
+    # runs of one input agree (an exhaustive search may pick others per session).
+    cuda = ("CUDAExecutionProvider", {"cudnn_conv_algo_search": "HEURISTIC"})
+    return [cuda, "CPUExecutionProvider"]
+
+
+def _open(path: Path, threads: int | None, device: str = "cpu") -> Any:
     try:
         import onnxruntime
     except ImportError:
@@ -192,13 +236,13 @@ def _open(path: Path, threads: int | None) -> Any:
             "'pytest-metamorphic[learned]'"
         ) from None
     options = onnxruntime.SessionOptions()
+    options.use_deterministic_compute = True
+    providers = _providers(onnxruntime, device)
     if threads is not None:
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
     try:
-        return onnxruntime.InferenceSession(
-            str(path), sess_options=options, providers=["CPUExecutionProvider"]
-        )
+        return onnxruntime.InferenceSession(str(path), sess_options=options, providers=providers)
     except Exception as error:  # onnxruntime raises its own types for bad files
         raise InvalidArgument(
             f"model file {str(path)!r} is not a usable ONNX model: {error}"

@@ -45,11 +45,13 @@ class Targets:
     height: NDArray[np.float32]
 
 
-def cell_targets(frame: Frame, grid: GridSpec | None = None) -> Targets:
+def cell_targets(frame: Frame, grid: GridSpec | None = None, *, min_points: int = 1) -> Targets:
     """Targets for a rendered frame (one with an ``instance`` field and its boxes).
 
     Obstacles labelled ``"unknown"`` are left out (the network learns the three road-user
-    classes; anything else is background to it).
+    classes; anything else is background to it), and so are obstacles with fewer than
+    ``min_points`` returns in the frame's cloud (a car seen by two returns is nothing a
+    network can tell from a post).
     """
     if "instance" not in frame.cloud.fields:
         raise InvalidArgument(
@@ -58,7 +60,7 @@ def cell_targets(frame: Frame, grid: GridSpec | None = None) -> Targets:
     grid = grid or GridSpec()
     instance = np.asarray(frame.cloud.fields["instance"]).astype(np.int64)
     boxes = list(frame.boxes)
-    if len(boxes) and instance.max() >= len(boxes):
+    if len(boxes) and instance.size and instance.max() >= len(boxes):
         raise InvalidArgument(f"{frame!r}: instance ids exceed its {len(boxes)} boxes")
     n = grid.size
     flat, inside = point_cells(frame.cloud.points, grid)
@@ -77,6 +79,8 @@ def cell_targets(frame: Frame, grid: GridSpec | None = None) -> Targets:
         first[1:] = pairs[0, 1:] != pairs[0, :-1]
         cell, owner = pairs[0, first], pairs[1, first]
         classes = np.array([CLASSES.index(b.label) if b.label in CLASSES else -1 for b in boxes])
+        returns = np.bincount(instance[instance >= 0], minlength=len(boxes))
+        classes[returns < min_points] = -1
         known = classes[owner] >= 0
         cell, owner = cell[known], owner[known]
         centers = np.array([b.center for b in boxes], dtype=np.float64)

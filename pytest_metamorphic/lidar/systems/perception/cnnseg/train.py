@@ -27,7 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from pytest_metamorphic.lidar.systems.perception.cnnseg.features import CHANNELS, GridSpec
+from pytest_metamorphic.lidar.systems.perception.cnnseg.features import (
+    CHANNELS,
+    SHIPPED_GRID,
+    GridSpec,
+)
 from pytest_metamorphic.lidar.systems.perception.cnnseg.network import CLASSES
 
 
@@ -145,6 +149,17 @@ def _loss(raw: Any, batch: dict[str, Any]) -> tuple[Any, dict[str, float]]:
     return total, parts
 
 
+def _pick(data: dict[str, np.ndarray], full: str, roi: str, scene: np.ndarray,
+          view: np.ndarray, dtype: Any) -> Any:  # fmt: skip
+    """Each chosen scene's whole-sweep (view 0) or ROI-only (view 1) array, as a tensor."""
+    import torch
+
+    chosen = np.stack(
+        [data[full][s] if v == 0 else data[roi][s] for s, v in zip(scene, view, strict=True)]
+    )
+    return torch.from_numpy(chosen.astype(dtype))
+
+
 def train(
     data: dict[str, np.ndarray],
     *,
@@ -177,15 +192,14 @@ def train(
         for step in range(steps_per_epoch):
             chosen = order[step * batch_size : (step + 1) * batch_size]
             scene, view = chosen % scenes, chosen // scenes
-            features = np.where(
-                (view == 0)[:, None, None, None], data["full"][scene], data["roi"][scene]
-            )
             batch = {
-                "features": torch.from_numpy(features.astype(np.float32)),
-                "objectness": torch.from_numpy(data["objectness"][scene].astype(np.float32)),
-                "offset": torch.from_numpy(data["offset"][scene].astype(np.float32)),
-                "label": torch.from_numpy(data["label"][scene].astype(np.int64)),
-                "height": torch.from_numpy(data["height"][scene].astype(np.float32)),
+                "features": _pick(data, "full", "roi", scene, view, np.float32),
+                "objectness": _pick(
+                    data, "full_objectness", "roi_objectness", scene, view, np.float32
+                ),
+                "offset": _pick(data, "full_offset", "roi_offset", scene, view, np.float32),
+                "label": _pick(data, "full_label", "roi_label", scene, view, np.int64),
+                "height": _pick(data, "full_height", "roi_height", scene, view, np.float32),
             }
             batch = {key: value.to(device) for key, value in _augment(batch, rng).items()}
             raw = network(batch["features"])
@@ -243,6 +257,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--width", type=int, default=16)
     parser.add_argument("--learning-rate", type=float, default=3e-3)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--grid-size", type=int, default=SHIPPED_GRID.size,
+                        help="cells a side (Apollo's HDL-64E model: 672)")  # fmt: skip
+    parser.add_argument("--grid-range", type=float, default=SHIPPED_GRID.range,
+                        help="half the side in metres (Apollo: 70)")  # fmt: skip
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     args = parser.parse_args(argv)
@@ -250,11 +268,17 @@ def main(argv: Sequence[str] | None = None) -> None:
 
     # Rendering needs trimesh; imported here so that the network alone (build_network)
     # loads where only PyTorch is installed (a GPU machine measuring throughput).
-    from pytest_metamorphic.lidar.systems.perception.cnnseg.data import SCENE_OPTIONS, dataset
+    from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (
+        CROP,
+        SCENE_OPTIONS,
+        dataset,
+    )
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    grid = GridSpec()
+    grid = GridSpec(size=args.grid_size, range=args.grid_range)
+    if grid.size < CROP:
+        parser.error(f"--grid-size must be at least the training window ({CROP} cells)")
     started = time.monotonic()
     seeds = [args.seed * 10_000_000 + i for i in range(args.scenes)]
     data = dataset(seeds, grid, args.workers)
@@ -275,6 +299,10 @@ def main(argv: Sequence[str] | None = None) -> None:
         "epochs": args.epochs,
         "width": args.width,
         "scene_options": json.dumps({k: v for k, v in SCENE_OPTIONS.items()}),
+        "training_data": "cnnseg.data: 80% streetscape streets, 20% random_scene; "
+        "HDL-64E 80%, other sensors 20%; degraded (noise, dropout, dead lasers, lost "
+        "packets, reflectance, tilt, camera crops)",
+        "training_window": CROP,
         "trained_seconds": round(time.monotonic() - started),
         "torch": torch.__version__,
     }
