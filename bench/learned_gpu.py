@@ -50,12 +50,14 @@ def frames_per_second(detector: CNNSegmentation, frames: list[Any], batch: int) 
 
 def agreement(first: list[list[Any]], second: list[list[Any]]) -> float:
     """Share of boxes (both ways) with a partner of their class within 0.5 m."""
+    kept = LEARNED.kept
+    assert kept is not None  # the learned profile judges MR1 by it
     matched = total = 0
     for a, b in zip(first, second, strict=True):
         for left, right in ((a, b), (b, a)):
             if not left:
                 continue
-            near, _ = LEARNED.kept.pairwise(left, right)
+            near, _ = kept.pairwise(left, right)
             matched += int(near.any(axis=1).sum()) if len(right) else 0
             total += len(left)
     return matched / total if total else 1.0

@@ -250,7 +250,7 @@ def _users(street: _Street, origin: NDArray[np.float64], heading: float, half_wi
     for _ in range(count * 4):
         if count <= 0:
             return
-        label: Label = rng.choice(["car", "car", "cyclist", "pedestrian", "pedestrian"])  # type: ignore[assignment]
+        label: Label = rng.choice(["car", "car", "cyclist", "pedestrian", "pedestrian"])
         u = float(rng.uniform(-street.reach, street.reach))
         if label == "pedestrian" and rng.random() < 0.6 and pavement > 0:
             v = float(rng.choice([-1.0, 1.0])) * (half_width + float(rng.uniform(0.3, pavement)))

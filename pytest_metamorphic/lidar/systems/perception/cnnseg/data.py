@@ -119,7 +119,7 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
         Box(tuple(rotation @ np.asarray(b.center)), b.size, b.yaw, b.label, points=int(n))
         for b, n in zip(frame.boxes, counts, strict=True)
     ]
-    return Frame(kept, roi=frame.roi, boxes=boxes, source=frame.source, sensor=frame.sensor)
+    return Frame(kept, roi=frame.roi, boxes=tuple(boxes), source=frame.source, sensor=frame.sensor)
 
 
 def _rotation(pitch: float, roll: float) -> np.ndarray:
