@@ -62,17 +62,16 @@ roi_only = CNNSegmentation(full_cloud=False)
 # Not claimed: each failed its 1000 derandomized follow-ups in bench/learned_claims.py
 # (docs/learned-model.md, "Every relation on it", has what each found).
 NOT_CLAIMED = (
+    "points repeated",
     "cloud and ROI turned",
     "cloud and ROI mirrored",
+    "beams missing",
     "an object inserted",
     "an object moved",
     "fog or rain",
 )
-CLAIMED = [
-    relation
-    for relation in lidar_relations(tolerance="learned")
-    if not relation.name.startswith(NOT_CLAIMED)
-]
+LEARNED_RELATIONS = lidar_relations(tolerance="learned")
+CLAIMED = [relation for relation in LEARNED_RELATIONS if not relation.name.startswith(NOT_CLAIMED)]
 
 
 # The strategies' rendered streets within 50 m: where bench/learned_claims.py measured
@@ -115,6 +114,23 @@ def test_mr1_catches_features_built_from_the_whole_sweep_on_a_real_sweep() -> No
     # One point 55.6 m away, outside the wedge, hides a car 6 m inside it, 15.4 m from
     # the point (reduced from 1000 points, proven 1-minimal).
     with pytest.raises(MetamorphicViolation, match=r"hidden: car at \(43\.3, -28\.5\)"):
+        check()
+
+
+@pytest.mark.slow  # about a minute: the hiding set's reduction runs 500 SUT calls
+def test_repeating_returns_makes_the_network_lose_a_car_beside_the_sensor() -> None:
+    # A real weakness found by the claims bench (32 follow-ups in): repeating every return
+    # of the sweep (or 197 of them, the reduction's set) changes log_count in the cells of
+    # a car 8.8 m to the side, 0.8 m inside the ROI's edge, and the network drops it.
+    (repeated,) = [r for r in LEARNED_RELATIONS if r.name.startswith("points repeated")]
+
+    @settings(max_examples=8, database=None, phases=[Phase.generate], deadline=None,
+              derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
+    @metamorphic(source=STREETS, relations=[repeated], followups=4, batch=True)
+    def check(frames: list[Frame]) -> list[list[Box]]:
+        return roi_only.detect_batch(frames)
+
+    with pytest.raises(MetamorphicViolation, match=r"source car at \(2\.3, -8\.8\) has no match"):
         check()
 
 
