@@ -82,7 +82,10 @@ def run_one(job: tuple[str, bool, int, int, str]) -> tuple[str, bool, int, str, 
     try:
         check()
     except MetamorphicViolation as violation:
-        found = " ".join(str(violation).split())[:300]
+        # The first line names the relation and its check (the row says both already):
+        # keep what was found.
+        lines = str(violation).splitlines()
+        found = "VIOLATED: " + " ".join(" ".join(lines[1:]).split())[:400]
     except Exception as error:
         found = f"ERROR {type(error).__name__}: {' '.join(str(error).split())[:200]}"
     judged = drawn[0] * followups
