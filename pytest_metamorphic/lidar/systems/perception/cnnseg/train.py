@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import (
     CHANNELS,
     SHIPPED_GRID,
@@ -281,7 +282,10 @@ def main(argv: Sequence[str] | None = None) -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    grid = GridSpec(size=args.grid_size, range=args.grid_range)
+    try:
+        grid = GridSpec(size=args.grid_size, range=args.grid_range)
+    except InvalidArgument as error:
+        parser.error(str(error))
     if grid.size < CROP:
         parser.error(f"--grid-size must be at least the training window ({CROP} cells)")
     started = time.monotonic()
