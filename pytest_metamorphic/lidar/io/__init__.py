@@ -8,7 +8,7 @@ unknown names, the first bytes); the format modules hold the details and options
 * :mod:`~pytest_metamorphic.lidar.io.rosbag`: ``index_bag``, ``read_bag``, ``iter_bag``,
   ``write_bag``, ``bag_topics``, ``pointcloud2_to_cloud``, ``cloud_to_pointcloud2``
 * :mod:`~pytest_metamorphic.lidar.io.kitti`: ``read_kitti_labels``, ``read_kitti_objects``,
-  ``read_kitti_calibration``
+  ``read_kitti_calibration``, ``read_kitti_dont_care``
 * :mod:`~pytest_metamorphic.lidar.io.apollo`: ``read_apollo_poly``,
   ``read_apollo_roi_points``, ``read_apollo_clusters``, ``read_apollo_pose``
 
@@ -37,6 +37,7 @@ from pytest_metamorphic.lidar.io.kitti import (
     KittiCalibration,
     KittiObject,
     read_kitti_calibration,
+    read_kitti_dont_care,
     read_kitti_labels,
     read_kitti_objects,
 )
@@ -69,6 +70,7 @@ __all__ = [
     "read_bin",
     "read_cloud",
     "read_kitti_calibration",
+    "read_kitti_dont_care",
     "read_kitti_labels",
     "read_kitti_objects",
     "read_pcd",

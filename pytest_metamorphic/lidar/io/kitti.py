@@ -16,7 +16,8 @@ Car, Van, Truck, Tram                    ``car``
 Pedestrian, Person_sitting               ``pedestrian``
 Cyclist                                  ``cyclist``
 Misc                                     ``unknown``
-DontCare                                 ignored (regions, not objects)
+DontCare                                 not objects: image regions
+                                         (:func:`read_kitti_dont_care`)
 =======================================  ==============
 
 :func:`read_kitti_objects` keeps everything else a label line says (original type,
@@ -40,8 +41,10 @@ from pytest_metamorphic.lidar.model.obstacles import Box, Label
 __all__ = [
     "KITTI_LABELS",
     "KittiCalibration",
+    "KittiDontCare",
     "KittiObject",
     "read_kitti_calibration",
+    "read_kitti_dont_care",
     "read_kitti_labels",
     "read_kitti_objects",
     "sensor_calibration",
@@ -232,6 +235,96 @@ def read_kitti_labels(
     See the module docstring for the class mapping and the conversion.
     """
     return [item.box for item in read_kitti_objects(label_path, calib_path)]
+
+
+@dataclass(frozen=True)
+class KittiDontCare:
+    """The image regions a KITTI label file marks DontCare, where nothing was labelled.
+
+    KITTI's annotators drew DontCare boxes in the left colour image over objects they did
+    not label (mostly ones too far away or too hidden). KITTI's evaluation neither
+    rewards nor counts as false a detection that falls in one: :meth:`covers` says
+    whether a LiDAR-frame box does, by the devkit's rule (the share of the detection's
+    image rectangle inside the region, against the class's overlap threshold).
+
+    Attributes
+    ----------
+    regions : tuple of (left, top, right, bottom)
+        Pixels in image 2.
+    calibration : KittiCalibration
+        The frame's own, to project boxes into image 2.
+    """
+
+    regions: tuple[tuple[float, float, float, float], ...]
+    calibration: KittiCalibration
+
+    def image_rectangle(self, box: Box) -> tuple[float, float, float, float] | None:
+        """The box's 8 corners projected into image 2, as (left, top, right, bottom).
+
+        None when a corner lies less than 0.1 m in front of the camera (not in the image).
+        """
+        calib = self.calibration
+        bev = box.corners_bev()
+        low, high = box.center[2] - box.size[2] / 2.0, box.center[2] + box.size[2] / 2.0
+        corners = np.array([[x, y, z, 1.0] for x, y in bev for z in (low, high)])
+        camera = calib.R0_rect @ (calib.Tr_velo_to_cam @ corners.T)
+        if np.any(camera[2] < 0.1):
+            return None
+        image = calib.P2 @ np.vstack([camera, np.ones(len(corners))])
+        u, v = image[0] / image[2], image[1] / image[2]
+        return float(u.min()), float(v.min()), float(u.max()), float(v.max())
+
+    def covers(self, box: Box, *, share: float = 0.5) -> bool:
+        """Whether more than ``share`` of ``box``'s image rectangle lies in one region."""
+        if not self.regions:
+            return False
+        rectangle = self.image_rectangle(box)
+        if rectangle is None:
+            return False
+        left, top, right, bottom = rectangle
+        area = (right - left) * (bottom - top)
+        if area <= 0:
+            return False
+        for a, b, c, d in self.regions:
+            wide = max(min(right, c) - max(left, a), 0.0)
+            high = max(min(bottom, d) - max(top, b), 0.0)
+            if wide * high / area > share:
+                return True
+        return False
+
+
+def read_kitti_dont_care(
+    label_path: str | os.PathLike[str],
+    calibration: str | os.PathLike[str] | KittiCalibration,
+) -> KittiDontCare:
+    """The DontCare regions of a KITTI label file, with the frame's calibration.
+
+    Raises
+    ------
+    DataError
+      A DontCare line without four numeric image coordinates (left <= right, top <= bottom).
+    """
+    label_path = Path(label_path)
+    calib = (
+        calibration
+        if isinstance(calibration, KittiCalibration)
+        else read_kitti_calibration(calibration)
+    )
+    regions = []
+    for number, line in enumerate(_read_text(label_path, "label file").splitlines(), 1):
+        parts = line.split()
+        if not parts or parts[0] != "DontCare":
+            continue
+        if len(parts) < 8:
+            raise DataError(f"line {number}: DontCare has no 2-D box", path=label_path)
+        left, top, right, bottom = _numbers(parts[4:8], label_path, f"line {number}")
+        if left > right or top > bottom:
+            raise DataError(
+                f"line {number}: DontCare box ({left}, {top}, {right}, {bottom}) is inverted",
+                path=label_path,
+            )
+        regions.append((left, top, right, bottom))
+    return KittiDontCare(tuple(regions), calib)
 
 
 def _to_lidar(

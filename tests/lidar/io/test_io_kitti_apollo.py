@@ -15,10 +15,12 @@ from pytest_metamorphic.lidar.io import (
     read_apollo_roi_points,
     read_bin,
     read_kitti_calibration,
+    read_kitti_dont_care,
     read_kitti_labels,
     read_kitti_objects,
 )
-from pytest_metamorphic.lidar.io.kitti import KITTI_LABELS
+from pytest_metamorphic.lidar.io.kitti import KITTI_LABELS, KittiDontCare, sensor_calibration
+from pytest_metamorphic.lidar.model.obstacles import Box
 
 TRAINING = "kitti_openpcdet/training"
 
@@ -131,6 +133,53 @@ def test_bad_labels(tmp_path, shared_data, content, message):
         return
     with pytest.raises(DataError, match=message) as error:
         read_kitti_labels(label, calib)
+    assert str(label) in str(error.value)
+
+
+def test_dont_care_regions_of_a_training_frame(shared_data):
+    regions = read_kitti_dont_care(*_frame(shared_data, "000001"))
+    assert len(regions.regions) == 4
+    assert regions.regions[0] == (503.89, 169.71, 590.61, 190.13)
+    # A car 62 m ahead, 4.4 m to the left (the road rising 1 m), projects into the first
+    # (widest) region;
+    # the same car 20 m to the right, or near, does not.
+    far = Box((62.0, 4.4, -0.4), (4.0, 1.8, 1.5), 0.0, "car")
+    left, top, right, bottom = regions.image_rectangle(far)
+    assert 503.89 < (left + right) / 2 < 590.61 and 169.71 < (top + bottom) / 2 < 190.13
+    assert regions.covers(far)
+    assert not regions.covers(Box((62.0, -20.0, -0.9), (4.0, 1.8, 1.5), 0.0, "car"))
+    assert not regions.covers(Box((12.0, 4.4, -0.9), (4.0, 1.8, 1.5), 0.0, "car"))
+    assert read_kitti_dont_care(*_frame(shared_data, "000000")).regions == ()
+
+
+def test_dont_care_cover_is_the_share_of_the_detection_inside():
+    calib = sensor_calibration()
+    box = Box((20.0, 0.0, 0.0), (2.0, 2.0, 2.0), 0.0, "car")
+    left, top, right, bottom = KittiDontCare((), calib).image_rectangle(box)
+    middle = (left + right) / 2
+    # A region over the left 60 % of the box's image covers it; over 40 % it does not.
+    for share, covered in ((0.6, True), (0.4, False)):
+        edge = left + share * (right - left)
+        assert KittiDontCare(((left - 5, top - 5, edge, bottom + 5),), calib).covers(box) is covered
+    assert not KittiDontCare(((middle, top, right, bottom),), calib).covers(box, share=0.6)
+    behind = Box((-20.0, 0.0, 0.0), (2.0, 2.0, 2.0), 0.0, "car")
+    assert KittiDontCare(((0, 0, 2000, 2000),), calib).image_rectangle(behind) is None
+    assert not KittiDontCare(((0, 0, 2000, 2000),), calib).covers(behind)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("DontCare -1 -1 -10 1 2\n", "line 1: DontCare has no 2-D box"),
+        ("\nDontCare -1 -1 -10 9 2 3 4 -1 -1 -1 -1000 -1000 -1000 -10\n", "line 2: DontCare box"),
+        ("DontCare -1 -1 -10 1 2 x 4 -1 -1 -1 -1000 -1000 -1000 -10\n", "non-numeric"),
+    ],
+)
+def test_bad_dont_care_lines(tmp_path, shared_data, content, message):
+    label = tmp_path / "label.txt"
+    label.write_text(content)
+    with pytest.raises(DataError, match=message) as error:
+        read_kitti_dont_care(label, _frame(shared_data, "000000")[1])
     assert str(label) in str(error.value)
 
 
