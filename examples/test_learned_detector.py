@@ -65,7 +65,7 @@ NOT_CLAIMED = (
     "points repeated",
     "cloud and ROI turned",
     "cloud and ROI mirrored",
-    "beams missing",
+    "an object removed",
     "an object inserted",
     "an object moved",
     "fog or rain",

@@ -8,11 +8,14 @@ seen a wall, a hedge or a row of parked cars, and on a real sweep it calls them 
 already knows (cuboids, poles, trees), laid out along a straight road or a crossroads:
 
 * pavements: slabs 8-20 cm high beside the road, so the ground steps up at the kerb;
-* parked rows: cars (and vans, labelled ``unknown``) along either kerb, nose to tail;
+* parked rows: cars and vans along either kerb, nose to tail (vans are ``car``s, as
+  Apollo has one VEHICLE type and :mod:`~pytest_metamorphic.lidar.io.kitti` reads KITTI's
+  Van and Truck as ``car``);
 * frontages: façades of buildings with gaps between them, fences and low walls (thin
   cuboids), hedges (clumps of small cuboids of varied height, as foliage returns come
   from several depths), trees and poles along the pavement, and sometimes nothing;
-* road users: cars, cyclists and pedestrians on the road, pedestrians on the pavements.
+* road users: cars, vans, cyclists and pedestrians on the road, pedestrians on the
+  pavements (standing on them).
 
 Everything is drawn from a seeded :class:`numpy.random.Generator`, so a scene is
 reproducible from its seed. Road users never overlap each other or a clutter object
@@ -34,7 +37,7 @@ from pytest_metamorphic.lidar.synthetic.description import BackgroundObject, Obs
 
 __all__ = ["StreetOptions", "street_scene"]
 
-_VAN = ((4.6, 1.8, 1.9), (6.2, 2.2, 2.7))  # vans and small lorries, labelled unknown
+_VAN = ((4.6, 1.8, 1.9), (6.2, 2.2, 2.7))  # vans and small lorries, labelled car
 _ROAD_LENGTH = 150.0  # metres each way from the sensor: past any grid's reach
 
 
@@ -85,6 +88,7 @@ class _Street:
     background: list[BackgroundObject] = field(default_factory=list)
     taken: list[tuple[float, float, float]] = field(default_factory=list)  # x, y, radius
     roads: ROI | None = None  # clutter never stands on a road
+    slabs: list[tuple[float, float, float, float, float]] = field(default_factory=list)
 
     def free(self, x: float, y: float, radius: float) -> bool:
         if math.hypot(x, y) < 3.5 + radius or math.hypot(x, y) > self.reach:
@@ -98,8 +102,7 @@ class _Street:
         self.taken.append((box.center[0], box.center[1], radius))
         if reflectivity is None:
             reflectivity = float(self.rng.uniform(0.05, 0.9))
-        self.obstacles.append(Obstacle(box, shape="car" if box.label == "unknown" else "auto",
-                                       reflectivity=reflectivity))  # fmt: skip
+        self.obstacles.append(Obstacle(box, reflectivity=reflectivity))
         return True
 
     def clutter(self, kind: str, x: float, y: float, size: tuple[float, float, float],
@@ -107,13 +110,28 @@ class _Street:
         if math.hypot(x, y) > self.reach + 20.0:
             return
         if self._touches(x, y, size, yaw) or self._on_road(x, y, size, yaw):
-            # Never over a road user, a pole or a tree, or across a road. (A pavement
-            # segment under a pedestrian is left out too: it then stands at road level.)
-            return
+            return  # never over a road user, a pole or a tree, or across a road
         radius = math.hypot(size[0], size[1]) / 2.0
         self.background.append(BackgroundObject(kind, (x, y), size, yaw=yaw))  # type: ignore[arg-type]
         if solid and radius < 4.0:
             self.taken.append((x, y, radius))
+
+    def pavement(self, x: float, y: float, size: tuple[float, float, float], yaw: float) -> bool:
+        """A pavement slab, under road users if need be; False where it would cross a road."""
+        if math.hypot(x, y) > self.reach + 20.0 or self._on_road(x, y, size, yaw):
+            return False
+        self.background.append(BackgroundObject("building", (x, y), size, yaw=yaw))
+        self.slabs.append((x, y, size[0], size[1], yaw))
+        return True
+
+    def on_pavement(self, x: float, y: float) -> bool:
+        """Whether a pavement slab lies under ``(x, y)``."""
+        for a, b, length, width, yaw in self.slabs:
+            c, s = math.cos(yaw), math.sin(yaw)
+            along, across = c * (x - a) + s * (y - b), -s * (x - a) + c * (y - b)
+            if abs(along) <= length / 2 and abs(across) <= width / 2:
+                return True
+        return False
 
     def _touches(self, x: float, y: float, size: tuple[float, float, float], yaw: float) -> bool:
         """Whether the footprint comes within any taken circle."""
@@ -129,14 +147,15 @@ class _Street:
     def _on_road(self, x: float, y: float, size: tuple[float, float, float], yaw: float) -> bool:
         if self.roads is None:
             return False
-        # 25 sample points of the footprint (corners, edge midpoints, centre...). On the
-        # longest façades they are 10 m apart, so at a junction a façade may reach into
-        # the crossing road between them: that street then ends in a building, as some do.
-        steps = np.array([-0.5, -0.25, 0.0, 0.25, 0.5])
-        a, b = np.meshgrid(steps * size[0], steps * size[1] * 0.9, indexing="ij")
+        # Sample points of the footprint at most 1.5 m apart (the narrowest road is 3 m),
+        # kept 5 cm inside its edges so a kerbside footprint does not count as on the road.
+        along = np.linspace(-0.5, 0.5, max(math.ceil(size[0] / 1.5) + 1, 3))
+        across = np.linspace(-0.5, 0.5, max(math.ceil(size[1] / 1.5) + 1, 3))
+        inset = np.array([max(size[0] - 0.1, 0.0), max(size[1] - 0.1, 0.0)])
+        a, b = np.meshgrid(along * inset[0], across * inset[1], indexing="ij")
         c, s = math.cos(yaw), math.sin(yaw)
         xy = np.stack([x + c * a.ravel() - s * b.ravel(), y + s * a.ravel() + c * b.ravel()], 1)
-        return bool(np.any(self.roads.contains(xy)))
+        return bool(np.any(self.roads.contains(xy, method="exact")))
 
 
 def _to_sensor(
@@ -151,11 +170,12 @@ def _size(rng: np.random.Generator, label: Label) -> tuple[float, float, float]:
     return tuple(float(rng.uniform(lo, hi)) for lo, hi in zip(prior.low, prior.high, strict=True))  # type: ignore[return-value]
 
 
-def _vehicle(rng: np.random.Generator, van: float) -> tuple[Label, tuple[float, float, float]]:
+def _vehicle(rng: np.random.Generator, van: float) -> tuple[float, float, float]:
+    """A car's size, or with chance ``van`` a van's or small lorry's (both label ``car``)."""
     if rng.random() < van:
         low, high = _VAN
-        return "unknown", tuple(float(rng.uniform(a, b)) for a, b in zip(low, high, strict=True))  # type: ignore[return-value]
-    return "car", _size(rng, "car")
+        return tuple(float(rng.uniform(a, b)) for a, b in zip(low, high, strict=True))  # type: ignore[return-value]
+    return _size(rng, "car")
 
 
 def _parked_row(street: _Street, origin: NDArray[np.float64], heading: float, side: float,
@@ -164,7 +184,7 @@ def _parked_row(street: _Street, origin: NDArray[np.float64], heading: float, si
     u = float(rng.uniform(-street.reach, -street.reach + 10.0))
     across = rng.random() < 0.15  # bays across the kerb
     while u < street.reach:
-        label, size = _vehicle(rng, 0.15)
+        size = _vehicle(rng, 0.15)
         length = size[1] if across else size[0]
         depth = size[0] if across else size[1]
         u += length / 2.0
@@ -173,7 +193,7 @@ def _parked_row(street: _Street, origin: NDArray[np.float64], heading: float, si
             x, y = _to_sensor(u, v, origin, heading)
             yaw = heading + (math.pi / 2 if across else 0.0) + float(rng.normal(0.0, 0.04))
             yaw += math.pi * float(rng.integers(2))
-            box = Box((x, y, street.ground + size[2] / 2.0), size, yaw, label)
+            box = Box((x, y, street.ground + size[2] / 2.0), size, yaw, "car")
             street.road_user(box)
         u += length / 2.0 + float(
             rng.uniform(0.4, 3.0) if rng.random() < 0.8 else rng.uniform(4, 15)
@@ -244,26 +264,41 @@ def _pavement_furniture(street: _Street, origin: NDArray[np.float64], heading: f
             u += float(rng.uniform(8, 40))
 
 
+def _pavement(street: _Street, origin: NDArray[np.float64], heading: float, u: float, v: float,
+              size: tuple[float, float]) -> None:  # fmt: skip
+    """A 10 m pavement slab from ``u``, or where that would cross a road, 2 m pieces of it."""
+    for length in (10.0, 2.0):
+        pieces = [street.pavement(*_to_sensor(u + k + length / 2, v, origin, heading),
+                                  (length, *size), heading)
+                  for k in np.arange(0.0, 10.0, length)]  # fmt: skip
+        if all(pieces) or length == 2.0:
+            return
+
+
 def _users(street: _Street, origin: NDArray[np.float64], heading: float, half_width: float,
-           pavement: float, count: int) -> None:  # fmt: skip
+           pavement: float, kerb: float, count: int) -> None:  # fmt: skip
     rng = street.rng
     for _ in range(count * 4):
         if count <= 0:
             return
         label: Label = rng.choice(["car", "car", "cyclist", "pedestrian", "pedestrian"])
         u = float(rng.uniform(-street.reach, street.reach))
-        if label == "pedestrian" and rng.random() < 0.6 and pavement > 0:
-            v = float(rng.choice([-1.0, 1.0])) * (half_width + float(rng.uniform(0.3, pavement)))
+        z = street.ground
+        on_pavement = label == "pedestrian" and rng.random() < 0.6 and pavement > 0
+        if on_pavement:
+            v = float(rng.choice([-1.0, 1.0])) * (half_width + float(rng.uniform(0.4, pavement)))
             yaw = float(rng.uniform(0, 2 * math.pi))
+            z += kerb + 0.02  # standing on the pavement, feet clear of its top
         else:
             v = float(rng.uniform(-half_width + 1.0, half_width - 1.0))
             yaw = heading + math.pi * float(rng.integers(2)) + float(rng.normal(0, 0.15))
             if rng.random() < 0.15:
                 yaw = float(rng.uniform(0, 2 * math.pi))
         x, y = _to_sensor(u, v, origin, heading)
-        size = _size(rng, label)
-        z = street.ground + size[2] / 2.0
-        if street.road_user(Box((x, y, z), size, yaw, label)):
+        if on_pavement and not street.on_pavement(x, y):
+            continue  # that stretch of pavement was left out (it would cross a road)
+        size = _vehicle(rng, 0.15) if label == "car" else _size(rng, label)
+        if street.road_user(Box((x, y, z + size[2] / 2.0), size, yaw, label)):
             count -= 1
 
 
@@ -317,18 +352,16 @@ def street_scene(
         half = width / 2.0
         share = count if index == 0 else count // 2
         pavement = float(rng.uniform(1.5, 5.0)) if rng.random() < 0.8 else 0.0
+        kerb = float(rng.uniform(0.08, 0.2))
         for side in (-1.0, 1.0):
             if rng.random() < options.parked:
                 _parked_row(street, road_origin, road_heading, side, half)
-        _users(street, road_origin, road_heading, half, pavement, share)
+            for u in np.arange(-street.reach, street.reach, 10.0) if pavement else ():
+                _pavement(street, road_origin, road_heading, u, side * (half + pavement / 2),
+                          (pavement, kerb))  # fmt: skip
+        _users(street, road_origin, road_heading, half, pavement, kerb, share)
         for side in (-1.0, 1.0):
             if pavement:
-                kerb = float(rng.uniform(0.08, 0.2))
-                for u in np.arange(-street.reach, street.reach, 10.0):
-                    x, y = _to_sensor(u + 5.0, side * (half + pavement / 2.0), road_origin,
-                                      road_heading)  # fmt: skip
-                    street.clutter("building", x, y, (10.0, pavement, kerb), road_heading,
-                                   solid=False)  # fmt: skip
                 if rng.random() < 0.7:
                     inset = float(rng.uniform(0.4, max(pavement - 0.3, 0.5)))
                     _pavement_furniture(street, road_origin, road_heading, side, half + inset)

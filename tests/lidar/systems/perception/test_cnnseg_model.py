@@ -18,9 +18,10 @@ from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.lidar.followups.perturb import NoiseOutsideROI
 from pytest_metamorphic.lidar.io.bin import read_bin
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
-from pytest_metamorphic.lidar.io.kitti import read_kitti_labels
+from pytest_metamorphic.lidar.io.kitti import KittiDontCare, read_kitti_dont_care, read_kitti_labels
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.systems.perception.cnnseg import (
     DEFAULT_MODEL,
     CNNSegmentation,
@@ -86,37 +87,56 @@ def test_golden_output_on_a_fixed_frame() -> None:
 
 
 def test_it_finds_nine_in_ten_cars_within_40_m_on_held_out_streets() -> None:
-    # Held-out streets of the training distribution: parked rows, façades, hedges, vans,
-    # other sensors, dead lasers. Measured on these 20 (2026-11-28): cars 125 of 136 found
-    # (0.92), precision 0.79 (vans called cars, most of the rest); pedestrians and
-    # cyclists about one in two at IoU 0.5 (pedestrians 10 of 13 at IoU 0.25).
+    # Held-out streets of the training distribution: parked rows, façades, hedges, vans
+    # (cars), other sensors, dead lasers. Measured on these 20 (2026-11-28, the model
+    # trained in session 25): cars 129 of 144 found (0.90), precision 0.90; pedestrians 5
+    # of 9 and cyclists 11 of 16 at IoU 0.5 (7 of 9 and 12 of 16 at IoU 0.25).
     frames = [held_out_frame(i) for i in range(20)]
     score = detection_quality(detector(True), frames)
-    assert score["car"].recall >= 0.88 and score["car"].precision >= 0.75
+    assert score["car"].recall >= 0.88 and score["car"].precision >= 0.85
     loose = detection_quality(detector(True), frames, min_iou=0.25)
-    assert loose["pedestrian"].recall >= 0.7 and loose["cyclist"].recall >= 0.5
+    assert loose["pedestrian"].recall >= 0.7 and loose["cyclist"].recall >= 0.7
 
 
-def _labelled_real_sweeps(root: Path) -> list[Frame]:
-    """The six KITTI training sweeps and KITTI 000134, camera wedge to 70 m as ROI."""
+def _labelled_real_sweeps(root: Path) -> tuple[list[Frame], dict[str, KittiDontCare]]:
+    """The six KITTI training sweeps and KITTI 000134, camera wedge to 70 m as ROI, and
+    each one's DontCare regions."""
     roi = kitti_label_region(max_range=70.0)
-    frames = list(FrameCatalog(root / "kitti_openpcdet" / "training", roi=roi))
+    training = root / "kitti_openpcdet" / "training"
+    frames = list(FrameCatalog(training, roi=roi))
+    regions = {
+        str(frame.source): read_kitti_dont_care(
+            *(
+                training / kind / f"{Path(str(frame.source)).stem}.txt"
+                for kind in ("label_2", "calib")
+            )
+        )
+        for frame in frames
+    }
     val = root / "kitti_pointpillars_demo" / "val"
     boxes = read_kitti_labels(val / "000134_gt.txt", val / "000134.txt")
-    return [*frames, Frame(read_bin(val / "000134.bin"), roi=roi, boxes=tuple(boxes))]
+    source = str(val / "000134.bin")
+    frames.append(Frame(read_bin(source), roi=roi, boxes=tuple(boxes), source=source))
+    regions[source] = read_kitti_dont_care(val / "000134_gt.txt", val / "000134.txt")
+    return frames, regions
 
 
 def test_on_the_labelled_real_sweeps_it_finds_half_the_cars(shared_data: Path) -> None:
     # Where the model stands on real sweeps it never trained on (bench/learned.py, model
-    # card): 3 of the 6 labelled cars within the grid's 70 m, 33 false "cars" in 7 sweeps,
-    # 5 of them within 40 m. A guard against getting worse, not a claim of competence.
-    frames = _labelled_real_sweeps(shared_data)
-    score = detection_quality(detector(True), frames, max_range=70.0)
+    # card): 3 of the 6 labelled cars within the grid's 70 m, 23 false "cars" in 7 sweeps,
+    # 7 of them within 40 m (KITTI's rules: DontCare regions and objects too sparse to
+    # score count neither way). A guard against getting worse, not a claim of competence.
+    frames, regions = _labelled_real_sweeps(shared_data)
+
+    def dont_care(frame: Frame, box: Box) -> bool:
+        return regions[str(frame.source)].covers(box)
+
+    score = detection_quality(detector(True), frames, max_range=70.0, ignore=dont_care)
     assert score["car"].true_positives + score["car"].false_negatives == 6
     assert score["car"].true_positives >= 3
-    assert score["car"].false_positives <= 40
-    near = detection_quality(detector(True), frames, max_range=40.0)
-    assert near["car"].false_positives <= 7
+    assert score["car"].false_positives <= 28
+    near = detection_quality(detector(True), frames, max_range=40.0, ignore=dont_care)
+    assert near["car"].false_positives <= 9
 
 
 def test_a_detector_travels_to_other_processes_without_its_session() -> None:

@@ -75,7 +75,10 @@ class CNNSegParams:
     height_thresh : float
         Points more than this above the predicted top are left out (Apollo: 0.5 m).
     min_points : int
-        Objects with fewer points are dropped (Apollo's ``min_pts_num``: 3).
+        Objects with fewer points are dropped. Apollo's ``min_pts_num`` is 3; 10 here,
+        chosen on 40 validation streets (``held_out_frame(1000 + i)``, no real sweep):
+        car F1 within 70 m 0.876 at 3, 0.897 at 10, 0.884 at 15 (the evaluation's own
+        bar: an object with fewer than 10 returns is not scored).
     edge_margin : float
         Objects with a point within this many metres of the grid's border are dropped:
         the grid cuts them, so the network sees a fragment (Apollo drops objects beyond
@@ -87,7 +90,7 @@ class CNNSegParams:
 
     objectness_thresh: float = 0.5
     height_thresh: float = 0.5
-    min_points: int = 3
+    min_points: int = 10
     edge_margin: float = 1.0
     ground: GroundParams = field(default_factory=GroundParams)
 
