@@ -111,38 +111,59 @@ def test_mr1_catches_features_built_from_the_whole_sweep_on_a_real_sweep() -> No
     def check(frames: list[Frame]) -> list[list[Box]]:
         return full_cloud.detect_batch(frames)
 
-    # One point 55.6 m away, outside the wedge, hides a car 6 m inside it, 15.4 m from
-    # the point (reduced from 1000 points, proven 1-minimal).
-    with pytest.raises(MetamorphicViolation, match=r"hidden: car at \(43\.3, -28\.5\)"):
+    # One point 13.4 m away, outside the wedge, hides a pedestrian 7.5 m inside it, 12.1 m
+    # from the point (reduced from 1000 points, proven 1-minimal).
+    with pytest.raises(MetamorphicViolation, match=r"hidden: pedestrian at \(17\.5, 4\.9\)"):
         check()
 
 
-@pytest.mark.slow  # about a minute: the hiding set's reduction runs 500 SUT calls
-def test_repeating_returns_makes_the_network_lose_a_car_beside_the_sensor() -> None:
-    # A real weakness found by the claims bench (32 follow-ups in): repeating every return
-    # of the sweep (or 197 of them, the reduction's set) changes log_count in the cells of
-    # a car 8.8 m to the side, 0.8 m inside the ROI's edge, and the network drops it.
+@pytest.mark.slow  # about a minute: the follow-up's reduction runs 500 SUT calls
+def test_repeating_returns_makes_the_detector_report_a_cyclist_it_drops_otherwise() -> None:
+    # A real non-invariance, found on the first held-out street: a cyclist 31 m away
+    # seen by 8 returns is below the detector's 10-return minimum (Apollo's min_pts_num
+    # counts points too); with every return repeated it has 16 and is reported. A sensor
+    # in dual-return mode, or two drivers publishing one topic, does this.
     (repeated,) = [r for r in LEARNED_RELATIONS if r.name.startswith("points repeated")]
 
-    @settings(max_examples=8, database=None, phases=[Phase.generate], deadline=None,
+    @settings(max_examples=3, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
-    @metamorphic(source=STREETS, relations=[repeated], followups=4, batch=True)
+    @metamorphic(source=st.just(held_out_frame(0)), relations=[repeated], followups=1, batch=True)
     def check(frames: list[Frame]) -> list[list[Box]]:
         return roi_only.detect_batch(frames)
 
-    with pytest.raises(MetamorphicViolation, match=r"source car at \(2\.3, -8\.8\) has no match"):
+    with pytest.raises(MetamorphicViolation, match=r"cyclist at \(25\.9, -16\.4\) has no match in"):
+        check()
+
+
+def test_removing_a_car_changes_what_the_network_calls_a_pedestrian_12_m_away() -> None:
+    # A real weakness found by the claims bench (252 follow-ups in, a cyclist lost 6.4 m
+    # from a removed car): the network reads an object's surroundings, so removing a car
+    # (its returns, with the ground behind it filled in) can change what it reports for
+    # another road user. Here a pedestrian 11.6 m from the removed car, which keeps every
+    # return, comes back as a cyclist.
+    (removed,) = [r for r in LEARNED_RELATIONS if r.name.startswith("an object removed")]
+
+    @settings(max_examples=10, database=None, phases=[Phase.generate], deadline=None,
+              derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
+    @metamorphic(source=st.just(held_out_frame(9)), relations=[removed], followups=1, batch=True)
+    def check(frames: list[Frame]) -> list[list[Box]]:
+        return roi_only.detect_batch(frames)
+
+    with pytest.raises(
+        MetamorphicViolation, match=r"pedestrian at \(4\.0, -49\.5\) \(11\.6 m from the removed car"
+    ):
         check()
 
 
 def test_rain_makes_the_network_lose_road_users_it_still_sees() -> None:
     # The network was trained on clear sweeps; droplet echoes within 22 m of the sensor
     # are new to it. A real weakness: in rain of 50 m visibility it loses road users near
-    # the sensor that keep nearly all their returns (6 of the first 8 held-out streets;
-    # here a car 8 m away keeping 3294 of its 3314 returns).
+    # the sensor that keep nearly all their returns (5 of the first 10 held-out streets;
+    # here a car 6 m away keeping 5941 of its 5968 returns).
     @settings(max_examples=10, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
     @metamorphic(
-        source=st.just(held_out_frame(2)),
+        source=st.just(held_out_frame(4)),
         relations=[adverse_weather(kinds=("rain",), visibilities=(50.0,))],
         followups=1,
         batch=True,
@@ -150,7 +171,7 @@ def test_rain_makes_the_network_lose_road_users_it_still_sees() -> None:
     def check(frames: list[Frame]) -> list[list[Box]]:
         return roi_only.detect_batch(frames)
 
-    with pytest.raises(MetamorphicViolation, match=r"car at \(6\.5, -4\.6\) lost although"):
+    with pytest.raises(MetamorphicViolation, match=r"car at \(6\.0, 1\.6\) lost although"):
         check()
 
 
