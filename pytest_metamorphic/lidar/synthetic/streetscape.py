@@ -361,10 +361,9 @@ def street_scene(
                           (pavement, kerb))  # fmt: skip
         _users(street, road_origin, road_heading, half, pavement, kerb, share)
         for side in (-1.0, 1.0):
-            if pavement:
-                if rng.random() < 0.7:
-                    inset = float(rng.uniform(0.4, max(pavement - 0.3, 0.5)))
-                    _pavement_furniture(street, road_origin, road_heading, side, half + inset)
+            if pavement and rng.random() < 0.7:
+                inset = float(rng.uniform(0.4, max(pavement - 0.3, 0.5)))
+                _pavement_furniture(street, road_origin, road_heading, side, half + inset)
             _frontage(street, road_origin, road_heading, side, half + pavement)
     return Scene(
         sensor_height=round(height, 4),

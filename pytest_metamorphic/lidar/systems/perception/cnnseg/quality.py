@@ -23,7 +23,7 @@ import numpy as np
 
 from pytest_metamorphic.lidar.judging.evaluation import Evaluation, evaluate, visible_truth
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.obstacles import Box, IoUMatcher
+from pytest_metamorphic.lidar.model.obstacles import Box, IoUMatcher, Label
 
 __all__ = ["detection_quality"]
 
@@ -57,7 +57,7 @@ def _scored(
     return kept
 
 
-_LABELS = ("car", "pedestrian", "cyclist", "unknown")
+_LABELS: tuple[Label, ...] = ("car", "pedestrian", "cyclist", "unknown")
 
 
 def detection_quality(
