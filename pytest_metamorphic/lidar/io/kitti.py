@@ -173,6 +173,13 @@ def read_kitti_calibration(path: str | os.PathLike[str]) -> KittiCalibration:
     return KittiCalibration(**matrices)
 
 
+def _calibration(calibration: str | os.PathLike[str] | KittiCalibration) -> KittiCalibration:
+    """``calibration`` itself, or the calibration file it names, read."""
+    if isinstance(calibration, KittiCalibration):
+        return calibration
+    return read_kitti_calibration(calibration)
+
+
 def read_kitti_objects(
     label_path: str | os.PathLike[str],
     calibration: str | os.PathLike[str] | KittiCalibration,
@@ -187,11 +194,7 @@ def read_kitti_objects(
       The frame's ``calib/*.txt``.
     """
     label_path = Path(label_path)
-    calib = (
-        calibration
-        if isinstance(calibration, KittiCalibration)
-        else read_kitti_calibration(calibration)
-    )
+    calib = _calibration(calibration)
     to_velo = calib.rect_to_velo()
     objects = []
     for number, line in enumerate(_read_text(label_path, "label file").splitlines(), 1):
@@ -305,11 +308,7 @@ def read_kitti_dont_care(
       A DontCare line without four numeric image coordinates (left <= right, top <= bottom).
     """
     label_path = Path(label_path)
-    calib = (
-        calibration
-        if isinstance(calibration, KittiCalibration)
-        else read_kitti_calibration(calibration)
-    )
+    calib = _calibration(calibration)
     regions = []
     for number, line in enumerate(_read_text(label_path, "label file").splitlines(), 1):
         parts = line.split()

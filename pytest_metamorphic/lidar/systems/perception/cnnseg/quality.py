@@ -28,6 +28,9 @@ from pytest_metamorphic.lidar.model.obstacles import Box, IoUMatcher, Label
 __all__ = ["detection_quality"]
 
 
+_LABELS: tuple[Label, ...] = ("car", "pedestrian", "cyclist", "unknown")
+
+
 def _within(boxes: Iterable[Box], max_range: float, frame: Frame) -> list[Box]:
     near = [box for box in boxes if float(np.hypot(*box.center[:2])) <= max_range]
     if frame.roi is None or not near:
@@ -55,9 +58,6 @@ def _scored(
                 continue  # where nothing was labelled (DontCare)
         kept.append(box)
     return kept
-
-
-_LABELS: tuple[Label, ...] = ("car", "pedestrian", "cyclist", "unknown")
 
 
 def detection_quality(
