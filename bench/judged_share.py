@@ -6,8 +6,8 @@ lasers to lose), every follow-up equalled its source, or it judged no obstacle; 
 engine reports that as NOTHING TESTED (:func:`pytest_metamorphic.core.stats.nothing_tested`).
 Each run here is one derandomized ``@metamorphic`` test of every relation of
 ``lidar_relations()`` (the ``"learned"`` tolerance profile for the learned model;
-insertion with templates cut from rendered streets, for frames without labels), 3
-sources, 1 follow-up each.
+insertion takes a frame's own labelled objects and the built-in rendered road users, the
+only objects a frame without labels has), 3 sources, 1 follow-up each.
 
 * **own**: the pairs the project's examples run: the reference pipeline on two labelled
   KITTI sweeps and a rendered HDL-64E street, the scikit-learn detector on the KITTI
@@ -49,7 +49,6 @@ _your_recordings = importlib.import_module("examples.test_your_recordings")
 SklearnDetector = _sklearn_example.SklearnDetector
 RECORDINGS = _your_recordings.RECORDINGS
 my_detector = _your_recordings.my_detector
-templates = _your_recordings.templates
 from pytest_metamorphic import MetamorphicViolation, metamorphic  # noqa: E402
 from pytest_metamorphic.core.stats import Recorder, nothing_tested, recording  # noqa: E402
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog  # noqa: E402
@@ -62,7 +61,7 @@ from pytest_metamorphic.lidar.synthetic import render  # noqa: E402
 from pytest_metamorphic.lidar.synthetic.layout import random_scene  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception import ReferencePerception  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation  # noqa: E402
-from pytest_metamorphic.relations.lidar import lidar_relations, object_insertion  # noqa: E402
+from pytest_metamorphic.relations.lidar import lidar_relations  # noqa: E402
 
 KITTI = conftest.SHARED_DATA / "kitti_openpcdet" / "training"
 SEARCH = settings(
@@ -96,11 +95,8 @@ def frame_sets() -> dict[str, list[Frame]]:
 
 
 def relations(tolerance: str) -> list[Any]:
-    """The library with the given tolerance profile, insertion with the template library."""
-    profile = as_tolerance(tolerance)  # type: ignore[arg-type]
-    chosen = lidar_relations(tolerance=profile)
-    kept = [r for r in chosen if not r.name.startswith("an object inserted")]
-    return [*kept, object_insertion(objects=templates(), matcher=profile.kept)]
+    """The library with the given tolerance profile."""
+    return lidar_relations(tolerance=as_tolerance(tolerance))  # type: ignore[arg-type]
 
 
 def run(

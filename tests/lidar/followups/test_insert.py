@@ -29,6 +29,8 @@ from pytest_metamorphic.lidar.followups.insert import (
 from pytest_metamorphic.lidar.followups.insert.catalogue import fits_class, road_user_templates
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.model.sensors import frame_sensor
+from pytest_metamorphic.lidar.roi import corridor_roi
 from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
 from pytest_metamorphic.lidar.systems.perception import ReferencePerception
 from pytest_metamorphic.lidar.systems.perception.mutants import mutant
@@ -362,3 +364,22 @@ def test_insertion_draws_road_users_and_scales_without_labels_of_its_own() -> No
 
     draw()
     assert len(seen) >= 3 and scaled > 0
+
+
+def test_road_users_seen_from_close_by_fit_where_a_short_recording_sees_ground() -> None:
+    """The VLP-16 recording (a yard) sees ground only within 8 m; an object is placed at
+    80-150 % of the range it was seen from, so only road users seen from close by fit."""
+    path = conftest.shared_data_path("nebula_velodyne", "vlp16", "1673400472138016708.pcd")
+    frame = FrameCatalog(path, roi=corridor_roi(width=7.0))[0]
+    layout = frame_sensor(frame).sensor
+    fits = {
+        template.source.split("[")[-1].rstrip("]"): bool(
+            free_placements(frame, template, layout=layout, limit=1)
+        )
+        for template in road_user_templates()
+    }
+    assert fits["adult close by"]
+    assert not any(fits[name] for name in ("small car", "van", "bus", "articulated lorry"))
+    close = [t for t in road_user_templates() if "close by" in t.source]
+    assert sorted(t.label for t in close) == ["car", "cyclist", "pedestrian"]
+    assert all(4.0 < t.range < 7.0 and fits_class(t.size, t.label) for t in close)

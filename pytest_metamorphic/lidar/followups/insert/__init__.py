@@ -27,7 +27,8 @@ object is found, :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` th
 lost.
 
 Besides a recording's own labels, insertion draws the built-in rendered road users of
-every size class, a child to an articulated lorry
+every size class, a child to an articulated lorry, and an adult, a cyclist and a car seen
+from 4-7 m for recordings that see ground only close by
 (:func:`~pytest_metamorphic.lidar.followups.insert.catalogue.road_user_templates`), and
 scales templates within real class sizes
 (:data:`~pytest_metamorphic.lidar.followups.insert.catalogue.CLASS_SIZES`): a recording

@@ -6,7 +6,9 @@ the sizes a perception stack must also handle (semLidarFuzz's and MultiTest's po
 detector tuned on cars meets vans, lorries, buses, articulated trailers, children) on an
 empty road with an HDL-64E and cuts them as templates (a row of parked cars as one
 object too: a wall of cars a detector may merge into one cluster); insertion re-casts them for each
-target frame's sensor, like any other template. :data:`CLASS_SIZES` bounds scaling
+target frame's sensor, like any other template. An adult, a cyclist and a car stand 4-7 m
+from the sensor: a template is placed at 80-150 % of the range it was seen from, and a
+VLP-16 in a yard or an Ouster in a hall sees ground only that far. :data:`CLASS_SIZES` bounds scaling
 (:meth:`~pytest_metamorphic.lidar.followups.insert.ObjectTemplate.scaled`) to real sizes.
 """
 
@@ -47,6 +49,12 @@ ROAD_USERS: tuple[tuple[str, tuple[float, float], tuple[float, float, float], fl
     ("articulated lorry", (36.0, -10.0), (16.5, 2.55, 4.0), 0.05, "car"),
     ("small car", (9.0, -4.0), (3.6, 1.6, 1.45), 0.4, "car"),
     ("child", (7.0, 3.0), (0.4, 0.35, 1.15), 0.0, "pedestrian"),
+    # Close by, for sensors whose recordings see ground only a few metres out (a VLP-16
+    # in a yard, an Ouster in a hall): a template is placed at 80-150 % of the range it
+    # was seen from, so these fit where the others cannot.
+    ("adult close by", (-3.0, -3.0), (0.6, 0.5, 1.75), 0.3, "pedestrian"),
+    ("cyclist close by", (3.0, -5.5), (1.8, 0.6, 1.7), 0.2, "cyclist"),
+    ("car close by", (1.0, 6.5), (4.3, 1.8, 1.5), 0.0, "car"),
 )
 # (and PARKED_ROW, below)
 """The rendered road users: name, (x, y), (length, width, height), heading, class."""
