@@ -9,11 +9,10 @@ users on the road and pedestrians on the pavements. The fifth is a
 ROI, clutter kept off it), the scenes the relation library's strategies draw. Each is
 rendered with the HDL-64E (four in five) or another sensor of
 :mod:`pytest_metamorphic.lidar.model.sensors`, then degraded as real sweeps are
-(:func:`degrade`): range noise, returns dropped, dead lasers, lost packets, intensities
-as KITTI's HDL-64E reports them in four sweeps of five (a bright road, dark objects, many
-returns at 0; measured on the two unlabelled KITTI sweeps) and scaled per sweep with
-per-return noise, the sensor tilted by up to a few degrees against the road, and one
-sweep in four cut to a camera's 90-degree view as KITTI's published crops are.
+(:func:`degrade`): range noise, returns dropped, dead lasers, lost packets, reflectances
+drawn per object and scaled per sweep with per-return noise, the sensor tilted by up to
+a few degrees against the road, and one sweep in four cut to a camera's 90-degree view
+as KITTI's published crops are.
 
 Held-out scenes (:func:`held_out_frame`) come from the same distribution with seeds no
 training scene uses. Real sweeps never enter training: the labelled KITTI sweeps measure
@@ -40,7 +39,6 @@ from pytest_metamorphic.lidar.model.sensors import (
     VLP32C,
 )
 from pytest_metamorphic.lidar.synthetic import render
-from pytest_metamorphic.lidar.synthetic.description import BACKGROUND_INSTANCE, GROUND_INSTANCE
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
 from pytest_metamorphic.lidar.synthetic.streetscape import street_scene
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import GridSpec, bev_features
@@ -70,7 +68,6 @@ OTHER_SENSOR_SHARE = 0.2
 CROP = 160  # cells a side of the window one training example covers
 MIN_TARGET_RETURNS = 4  # obstacles with fewer returns are background to the network
 HELD_OUT_SEED_OFFSET = 10**9  # held-out scenes never share a seed with training ones
-CALIBRATED_SHARE = 0.8  # of sweeps whose intensities are KITTI's (see _reflectance)
 
 
 def _scene_and_sensor(rng: np.random.Generator, name: str) -> tuple[Any, Any]:
@@ -108,7 +105,9 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
         distance, 0.5
     )
     points[:, :3] *= stretch
-    points[:, 3] = _reflectance(points, np.asarray(cloud.fields["instance"]), rng)
+    # Reflectance: scaled per sweep, noisy per return (renderer: reflectivity x cos).
+    intensity = points[:, 3] * rng.uniform(0.4, 1.6) * rng.lognormal(0.0, 0.35, len(points))
+    points[:, 3] = np.clip(intensity, 0.0, 1.0)
     # The sensor tilted against the road (mounting, pitch under braking, cambered roads).
     pitch, roll = np.radians(rng.normal(0.0, 1.0, 2))
     rotation = _rotation(pitch, roll)
@@ -121,40 +120,6 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
         for b, n in zip(frame.boxes, counts, strict=True)
     ]
     return Frame(kept, roi=frame.roi, boxes=tuple(boxes), source=frame.source, sensor=frame.sensor)
-
-
-def _reflectance(points: np.ndarray, instance: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Intensities (0-1) as a real sensor reports them, from the renderer's
-    reflectivity x cos(incidence): scaled per sweep and noisy per return; then, in
-    :data:`CALIBRATED_SHARE` of sweeps, as KITTI's HDL-64E reports them.
-
-    Measured on the two unlabelled KITTI sweeps of the shared data (PointPillars' testing
-    000002 and mmdetection3d's 000008; no labelled or reported sweep), camera wedge, 5-40 m:
-    the road reads 0.23 and 0.30 (median), whatever the incidence, and fades to 0 beyond
-    some 30 m; 31 % and 23 % of the returns above it read exactly 0 (dark paint, glass,
-    foliage). The cos model gives the road 0.02-0.07 and no zero above it, so a network
-    trained on it alone learns "dark is road": on a real sweep, a dark car.
-    """
-    count = len(points)
-    intensity = points[:, 3] * rng.uniform(0.4, 1.6) * rng.lognormal(0.0, 0.35, count)
-    if rng.random() < CALIBRATED_SHARE:
-        distance = np.maximum(np.hypot(points[:, 0], points[:, 1]), 0.5)
-        ground = instance == GROUND_INSTANCE
-        road = rng.uniform(0.15, 0.35) * rng.lognormal(0.0, 0.3, count)
-        road *= np.minimum(1.0, (rng.uniform(20.0, 45.0) / distance) ** 3)
-        intensity[ground] = road[ground]
-        # Each object its own surface: a factor on its brightness and a share of
-        # returns that read 0; background surfaces share one share per sweep.
-        objects, which = np.unique(np.maximum(instance, -1), return_inverse=True)
-        factor = np.exp(rng.normal(0.0, 0.7, len(objects)))
-        dark = rng.uniform(0.0, 0.5, len(objects))
-        factor[objects < 0], dark[objects < 0] = 1.0, 0.0  # ground: set above
-        background = instance == BACKGROUND_INSTANCE
-        intensity *= factor[which]
-        zero = rng.random(count) < np.where(background, rng.uniform(0.0, 0.4), dark[which])
-        intensity[zero & ~ground] = 0.0
-        intensity[intensity < rng.uniform(0.0, 0.02)] = 0.0  # the receiver's floor
-    return np.clip(intensity, 0.0, 1.0)
 
 
 def _rotation(pitch: float, roll: float) -> np.ndarray:
