@@ -7,11 +7,11 @@ with ROI features (the configuration whose claims are measured). Sources: ``--st
 held-out rendered streets (``held_out_frame(i)``, the training distribution, seeds no
 training scene uses). Transforms: a quarter turn of cloud and ROI about the sensor, the
 mirror y -> -y, and the sweep repeated (every return twice). Each source obstacle the
-profile judges (inside the ROI, >= 10 returns) is mapped into the follow-up's frame and
-paired with the follow-up obstacle whose centre is nearest; the table gives the centre
-shift (median, 95th percentile, largest), the largest change of length, width or height,
-how many pairs changed class, and how many obstacles have no follow-up obstacle within
-0.5 m (what the profile calls a violation).
+profile judges (wholly in the ROI, the relations' default scope; >= 10 returns) is mapped
+into the follow-up's frame and paired with the follow-up obstacle whose centre is
+nearest; the table gives the centre shift (median, 95th percentile, largest), the largest
+change of length, width or height, how many pairs changed class, and how many obstacles
+have no follow-up obstacle within 0.5 m (what the profile calls a violation).
 
 Ends with ``RESULT judged=<per transform> shift_median_cm=... shift_max_cm=...
 size_max_cm=... class_changed=... lost=...`` (over all three transforms).
@@ -39,6 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from pytest_metamorphic.lidar.followups.perturb.edits import RotateAboutSensor  # noqa: E402
 from pytest_metamorphic.lidar.followups.symmetry import MirrorAcrossX  # noqa: E402
+from pytest_metamorphic.lidar.judging.scope import as_scope  # noqa: E402
 from pytest_metamorphic.lidar.model.cloud import PointCloud  # noqa: E402
 from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.model.obstacles import Box  # noqa: E402
@@ -60,14 +61,8 @@ TRANSFORMS: dict[str, tuple[Callable[[Frame], Frame], Callable[[Box], Box]]] = {
 
 
 def _judged(boxes: list[Box], frame: Frame) -> list[Box]:
-    if frame.roi is None:
-        return [box for box in boxes if (box.points or 0) >= MIN_RETURNS]
-    inside = frame.roi.contains(np.array([box.center[:2] for box in boxes]).reshape(-1, 2))
-    return [
-        box
-        for box, ok in zip(boxes, inside, strict=True)
-        if ok and (box.points or 0) >= MIN_RETURNS
-    ]
+    """What the relations judge (the default ROI scope) of >= MIN_RETURNS returns."""
+    return [box for box in as_scope("roi").select(boxes, frame) if (box.points or 0) >= MIN_RETURNS]
 
 
 def pairs(
@@ -93,12 +88,13 @@ def summary(found: list[tuple[Box, Box | None]]) -> dict[str, float]:
     matched = [(a, b) for a, b in found if b is not None]
     shifts = np.array([math.dist(a.center[:2], b.center[:2]) for a, b in matched])
     close = [(a, b) for (a, b), d in zip(matched, shifts, strict=True) if d <= GONE]
+    kept = 100 * shifts[shifts <= GONE] if close else np.zeros(1)  # cm
     sizes = [max(abs(x - y) for x, y in zip(a.size, b.size, strict=True)) for a, b in close]
     return {
         "judged": len(found),
-        "shift_median_cm": 100 * float(np.median(shifts[shifts <= GONE])) if close else 0.0,
-        "shift_p95_cm": 100 * float(np.percentile(shifts[shifts <= GONE], 95)) if close else 0.0,
-        "shift_max_cm": 100 * float(shifts[shifts <= GONE].max()) if close else 0.0,
+        "shift_median_cm": float(np.median(kept)),
+        "shift_p95_cm": float(np.percentile(kept, 95)),
+        "shift_max_cm": float(kept.max()),
         "size_max_cm": 100 * max(sizes, default=0.0),
         "class_changed": sum(a.label != b.label for a, b in close),
         "lost": len(found) - len(close),

@@ -5,10 +5,11 @@ cars, a few pedestrians and one cyclist, and no bus. :func:`road_user_templates`
 the sizes a perception stack must also handle (semLidarFuzz's and MultiTest's point: a
 detector tuned on cars meets vans, lorries, buses, articulated trailers, children) on an
 empty road with an HDL-64E and cuts them as templates (a row of parked cars as one
-object too: a wall of cars a detector may merge into one cluster); insertion re-casts them for each
-target frame's sensor, like any other template. An adult, a cyclist and a car stand 4-7 m
-from the sensor: a template is placed at 80-150 % of the range it was seen from, and a
-VLP-16 in a yard or an Ouster in a hall sees ground only that far. :data:`CLASS_SIZES` bounds scaling
+object too: a wall of cars a detector may merge into one cluster); insertion re-casts them
+for each target frame's sensor, like any other template. An adult, a cyclist and a car
+stand 4-7 m from the sensor: a template is placed at 80-150 % of the range it was seen
+from, and a VLP-16 in a yard or an Ouster in a hall sees ground only that far.
+:data:`CLASS_SIZES` bounds scaling
 (:meth:`~pytest_metamorphic.lidar.followups.insert.ObjectTemplate.scaled`) to real sizes.
 """
 
