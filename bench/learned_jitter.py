@@ -105,6 +105,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--streets", type=int, default=30)
     args = parser.parse_args()
+    if args.streets < 1:
+        parser.error(f"--streets must be at least 1, got {args.streets}")
     started = time.perf_counter()
     detector = CNNSegmentation(full_cloud=False)
     frames = [held_out_frame(i) for i in range(args.streets)]
@@ -118,6 +120,8 @@ def main() -> None:
         print(f"{name:<16} {s['judged']:>6} {s['shift_median_cm']:>9.1f} {s['shift_p95_cm']:>7.1f} "
               f"{s['shift_max_cm']:>7.1f} {s['size_max_cm']:>11.1f} {s['class_changed']:>13} "
               f"{s['lost']:>5}")  # fmt: skip
+    if not everything:
+        sys.exit("no obstacle was judged on these streets: nothing was measured")
     total = summary(everything)
     print(f"({time.perf_counter() - started:.0f} s)")
     print(
