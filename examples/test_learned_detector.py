@@ -65,6 +65,7 @@ NOT_CLAIMED = (
     "points repeated",
     "cloud and ROI turned",
     "cloud and ROI mirrored",
+    "ranges quantized",
     "an object removed",
     "an object inserted",
     "an object moved",
@@ -111,9 +112,33 @@ def test_mr1_catches_features_built_from_the_whole_sweep_on_a_real_sweep() -> No
     def check(frames: list[Frame]) -> list[list[Box]]:
         return full_cloud.detect_batch(frames)
 
-    # One point 13.4 m away, outside the wedge, hides a pedestrian 7.5 m inside it, 12.1 m
-    # from the point (reduced from 1000 points, proven 1-minimal).
-    with pytest.raises(MetamorphicViolation, match=r"hidden: pedestrian at \(17\.5, 4\.9\)"):
+    # One point 54.5 m away, outside the wedge, hides a car 4.8 m inside it, 4.6 m from
+    # the point (reduced from 1000 points, proven 1-minimal).
+    with pytest.raises(MetamorphicViolation, match=r"hidden: car at \(44\.9, -31\.4\)"):
+        check()
+
+
+KITTI_000004 = conftest.SHARED_DATA / "kitti_openpcdet" / "training" / "velodyne" / "000004.bin"
+
+
+@pytest.mark.skipif(not KITTI_000004.is_file(), reason=f"{KITTI_000004} is not there "
+                    "(set PYTEST_METAMORPHIC_DATA to the shared data)")  # fmt: skip
+def test_range_steps_of_5_cm_make_the_network_lose_a_car_on_a_real_sweep() -> None:
+    # A real weakness, found by the claims bench after 988 follow-ups on rendered streets
+    # (0.18 m steps lose a car 20 m away that keeps 139 of its 185 returns) and within 20
+    # follow-ups on 8 of the 9 real KITTI sweeps: a driver that rounds ranges to a few
+    # centimetres changes which cells the network calls objects. Here, on KITTI 000004
+    # (camera wedge as ROI), 5 cm steps lose a "car" 35 m away that keeps all its returns.
+    sweep = Frame(read_bin(KITTI_000004), roi=kitti_label_region(max_range=70.0))
+    (quantized,) = [r for r in LEARNED_RELATIONS if r.name.startswith("ranges quantized")]
+
+    @settings(max_examples=20, database=None, phases=[Phase.generate], deadline=None,
+              derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
+    @metamorphic(source=st.just(sweep), relations=[quantized], followups=1, batch=True)
+    def check(frames: list[Frame]) -> list[list[Box]]:
+        return roi_only.detect_batch(frames)
+
+    with pytest.raises(MetamorphicViolation, match=r"car at \(33\.8, -10\.2\) lost although"):
         check()
 
 
@@ -131,26 +156,27 @@ def test_repeating_returns_makes_the_detector_report_a_cyclist_it_drops_otherwis
     def check(frames: list[Frame]) -> list[list[Box]]:
         return roi_only.detect_batch(frames)
 
-    with pytest.raises(MetamorphicViolation, match=r"cyclist at \(25\.9, -16\.4\) has no match in"):
+    with pytest.raises(MetamorphicViolation, match=r"cyclist at \(26\.2, -16\.4\) has no match in"):
         check()
 
 
-def test_removing_a_car_changes_what_the_network_calls_a_pedestrian_12_m_away() -> None:
-    # A real weakness found by the claims bench (252 follow-ups in, a cyclist lost 6.4 m
-    # from a removed car): the network reads an object's surroundings, so removing a car
-    # (its returns, with the ground behind it filled in) can change what it reports for
-    # another road user. Here a pedestrian 11.6 m from the removed car, which keeps every
-    # return, comes back as a cyclist.
+def test_removing_a_car_moves_another_car_12_m_away() -> None:
+    # A real weakness found by the claims bench (252 follow-ups in, a cyclist 6.5 m from a
+    # removed car came back as a pedestrian): the network reads an object's surroundings,
+    # so removing a car (its returns, with the ground behind it filled in) can change what
+    # it reports for another road user. Here, on held-out street 26, removing a car 8 m
+    # from the sensor moves the box of a car 12 m from it, whose returns it does not touch,
+    # by 0.6 m: more than the 0.5 m the learned tolerance allows a network's jitter.
     (removed,) = [r for r in LEARNED_RELATIONS if r.name.startswith("an object removed")]
 
     @settings(max_examples=10, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
-    @metamorphic(source=st.just(held_out_frame(9)), relations=[removed], followups=1, batch=True)
+    @metamorphic(source=st.just(held_out_frame(26)), relations=[removed], followups=1, batch=True)
     def check(frames: list[Frame]) -> list[list[Box]]:
         return roi_only.detect_batch(frames)
 
     with pytest.raises(
-        MetamorphicViolation, match=r"pedestrian at \(4\.0, -49\.5\) \(11\.6 m from the removed car"
+        MetamorphicViolation, match=r"car at \(-23\.0, 2\.4\) \(12\.0 m from the removed car"
     ):
         check()
 
@@ -158,8 +184,8 @@ def test_removing_a_car_changes_what_the_network_calls_a_pedestrian_12_m_away() 
 def test_rain_makes_the_network_lose_road_users_it_still_sees() -> None:
     # The network was trained on clear sweeps; droplet echoes within 22 m of the sensor
     # are new to it. A real weakness: in rain of 50 m visibility it loses road users near
-    # the sensor that keep nearly all their returns (5 of the first 10 held-out streets;
-    # here a car 6 m away keeping 5941 of its 5968 returns).
+    # the sensor that keep nearly all their returns (4 of the first 10 held-out streets;
+    # here a car 6 m away keeping 5835 of its 5901 returns).
     @settings(max_examples=10, database=None, phases=[Phase.generate], deadline=None,
               derandomize=True, suppress_health_check=LIDAR)  # fmt: skip
     @metamorphic(

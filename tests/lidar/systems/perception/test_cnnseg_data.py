@@ -8,6 +8,7 @@ import pytest
 
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.synthetic import render
+from pytest_metamorphic.lidar.synthetic.description import GROUND_INSTANCE
 from pytest_metamorphic.lidar.synthetic.streetscape import street_scene
 from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (
     CROP,
@@ -67,3 +68,59 @@ def test_an_example_is_a_window_of_the_grid_with_targets_per_view() -> None:
     assert data["roi"][5].sum() <= data["full"][5].sum()
     frame = training_frame(seed)
     assert frame.roi is not None and len(frame.cloud) > 10_000
+
+
+def test_reflectances_are_drawn_as_a_real_sensor_reports_them(street: Frame) -> None:
+    # The renderer's reflectivity x cos gives the road almost nothing and no zero above
+    # it; real KITTI sweeps read the road at about 0.25 and many object returns at 0.
+    instance = np.asarray(street.cloud.fields["instance"])
+    rendered_road = float(np.median(street.cloud.points[instance == -1, 3]))
+    roads, zero_shares = [], []
+    for seed in range(40):
+        degraded = degrade(street, np.random.default_rng(seed))
+        kept = np.asarray(degraded.cloud.fields["instance"])
+        near = np.hypot(*degraded.cloud.points[:, :2].T) < 20.0
+        roads.append(float(np.median(degraded.cloud.points[(kept == -1) & near, 3])))
+        zero_shares.append(float(np.mean(degraded.cloud.points[kept >= 0, 3] == 0.0)))
+    assert rendered_road < 0.1
+    assert np.median(roads) > 2 * rendered_road  # most sweeps read the road bright
+    assert min(roads) < max(roads) / 2  # and how bright varies per sweep
+    assert np.median(zero_shares) > 0.05 and min(zero_shares) == 0.0  # some sweeps keep cos
+
+
+def _ground_per_square_metre(frame: Frame, near: float, far: float) -> float:
+    instance = np.asarray(frame.cloud.fields["instance"])
+    distance = np.hypot(*frame.cloud.points[:, :2].T)
+    ground = (instance == GROUND_INSTANCE) & (distance >= near) & (distance < far)
+    return float(ground.sum()) / (np.pi * (far**2 - near**2))
+
+
+def test_far_road_returns_thin_out_as_on_a_real_sensor(street: Frame) -> None:
+    # Real KITTI sweeps keep 0.2-0.4 road returns per m² at 30-45 m where the renderer
+    # gives 0.6-1.5; the road near the car keeps (almost) all of its returns.
+    rendered_far = _ground_per_square_metre(street, 30.0, 45.0)
+    rendered_near = _ground_per_square_metre(street, 5.0, 10.0)
+    far, near = [], []
+    for seed in range(20):
+        degraded = degrade(street, np.random.default_rng(seed))
+        far.append(_ground_per_square_metre(degraded, 30.0, 45.0) / rendered_far)
+        near.append(_ground_per_square_metre(degraded, 5.0, 10.0) / rendered_near)
+    assert np.median(far) < 0.5  # most sweeps lose most far road returns
+    assert max(far) > 0.75  # some sweeps keep them, as the renderer draws them
+    assert np.median(near) > 0.8
+
+
+def test_a_camera_crop_cuts_the_near_road_as_kittis_published_crops_do(
+    street: Frame,
+) -> None:
+    degraded = [degrade(street, np.random.default_rng(seed)) for seed in range(40)]
+    cropped = [frame for frame in degraded if np.all(frame.cloud.points[:, 0] > 0)]
+    assert cropped, "one sweep in four is cut to the camera's view"
+    for frame in cropped:
+        x, y, z = frame.cloud.points[:, :3].T
+        assert np.degrees(np.abs(np.arctan2(y, x))).max() < 40.0 + 1.0  # and the tilt
+        # Nothing under -14 degrees from the camera, give or take the tilt (up to a few
+        # degrees): the road nearer than some 6 m is gone.
+        assert np.degrees(np.arctan2(z + 0.08, np.hypot(x, y))).min() > -14.0 - 5.0
+        instance = np.asarray(frame.cloud.fields["instance"])
+        assert np.hypot(x, y)[instance == GROUND_INSTANCE].min() > 4.0
