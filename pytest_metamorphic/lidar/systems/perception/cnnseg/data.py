@@ -14,8 +14,9 @@ returns lost as a real sensor loses them (four sweeps in five), intensities as K
 HDL-64E reports them in four sweeps of five (a bright road, dark objects, many returns
 at 0) and scaled per sweep with per-return noise, the sensor tilted by up to a few
 degrees against the road, and one sweep in four cut to what a camera sees, as KITTI's
-published crops are (80 degrees wide, nothing below 14 degrees under its horizon). Each
-of these was measured on the two unlabelled KITTI sweeps of the shared data.
+published crops are (80 degrees wide, nothing below 14 degrees under its horizon). The
+far road, the intensities and the camera's edges were measured on the two unlabelled
+KITTI sweeps of the shared data.
 
 Held-out scenes (:func:`held_out_frame`) come from the same distribution with seeds no
 training scene uses. Real sweeps never enter training: the labelled KITTI sweeps measure
