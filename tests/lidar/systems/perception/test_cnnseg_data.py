@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.description import GROUND_INSTANCE
@@ -124,3 +126,9 @@ def test_a_camera_crop_cuts_the_near_road_as_kittis_published_crops_do(
         assert np.degrees(np.arctan2(z + 0.08, np.hypot(x, y))).min() > -14.0 - 5.0
         instance = np.asarray(frame.cloud.fields["instance"])
         assert np.hypot(x, y)[instance == GROUND_INSTANCE].min() > 4.0
+
+
+def test_degrading_a_recorded_frame_names_the_missing_field(street: Frame) -> None:
+    recorded = Frame(PointCloud(street.cloud.points), roi=street.roi)  # as a .bin holds
+    with pytest.raises(InvalidArgument, match="no 'instance' field"):
+        degrade(recorded, np.random.default_rng(0))

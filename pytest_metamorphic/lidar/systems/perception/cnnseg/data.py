@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.model.sensors import (
@@ -98,6 +99,11 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
     Boxes move with the tilt, and their ``points`` count what is left of each obstacle.
     """
     cloud = frame.cloud
+    if "instance" not in cloud.fields:
+        raise InvalidArgument(
+            f"degrade needs a rendered frame: {frame!r} has no 'instance' field (which return "
+            "belongs to which obstacle, the road or the background)"
+        )
     points = cloud.points.astype(np.float64)
     keep = rng.random(len(points)) >= rng.uniform(0.0, 0.12)
     rings = cloud.fields.get("ring")
