@@ -10,14 +10,13 @@ ROI, clutter kept off it), the scenes the relation library's strategies draw. Ea
 rendered with the HDL-64E (four in five) or another sensor of
 :mod:`pytest_metamorphic.lidar.model.sensors`, then degraded as real sweeps are
 (:func:`degrade`): range noise, returns dropped, dead lasers, lost packets, far road
-returns lost as a real sensor loses them (four sweeps in five), the returns of road
-users and clutter thinned as dark paint and glass thin them (four sweeps in five),
-intensities as KITTI's HDL-64E reports them in four sweeps of five (a bright road, dark
-objects, many returns at 0) and scaled per sweep with per-return noise, the sensor
-tilted by up to a few degrees against the road, and one sweep in four cut to what a
-camera sees, as KITTI's published crops are (80 degrees wide, nothing below 14 degrees
-under its horizon). The far road, the road users' returns, the intensities and the
-camera's edges were measured on the two unlabelled KITTI sweeps of the shared data.
+returns lost as a real sensor loses them (four sweeps in five), intensities as KITTI's
+HDL-64E reports them in four sweeps of five (a bright road, dark objects, many returns
+at 0) and scaled per sweep with per-return noise, the sensor tilted by up to a few
+degrees against the road, and one sweep in four cut to what a camera sees, as KITTI's
+published crops are (80 degrees wide, nothing below 14 degrees under its horizon). The
+far road, the intensities and the camera's edges were measured on the two unlabelled
+KITTI sweeps of the shared data.
 
 Held-out scenes (:func:`held_out_frame`) come from the same distribution with seeds no
 training scene uses. Real sweeps never enter training: the labelled KITTI sweeps measure
@@ -78,9 +77,6 @@ HELD_OUT_SEED_OFFSET = 10**9  # held-out scenes never share a seed with training
 CALIBRATED_SHARE = 0.8  # of sweeps whose intensities are KITTI's (see _reflectance)
 FAR_GROUND_SHARE = 0.8  # of sweeps that lose far road returns (see _far_ground_kept)
 FAR_GROUND_RANGE = (12.0, 25.0)  # metres within which a sweep keeps all of its road
-OBJECT_LOSS_SHARE = 0.8  # of sweeps whose road users lose returns (see _object_returns_kept)
-OBJECT_KEPT = (0.3, 1.0)  # share of its returns a road user keeps, drawn per object
-BACKGROUND_BLOCK = 4.0  # metres: clutter keeps its own share per block of this side
 CAMERA_HALF_WIDTH = 40.0  # degrees: KITTI's crops, measured
 CAMERA_LOWEST = -14.0  # degrees below the camera's horizon: KITTI's crops, measured
 CAMERA_BELOW = 0.08  # metres the camera sits below the LiDAR (KITTI's calibration)
@@ -120,7 +116,6 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
         keep &= ((azimuth - start) % (2 * math.pi)) >= width
     instance = np.asarray(cloud.fields["instance"])
     keep &= _far_ground_kept(points, instance, rng)
-    keep &= _object_returns_kept(points, instance, rng)
     if rng.random() < 0.25:  # a camera's view, as KITTI's published crops
         keep &= _in_camera_view(points, azimuth)
     # Range noise beyond the renderer's 2 cm, along the ray.
@@ -164,37 +159,6 @@ def _far_ground_kept(
     chance = np.minimum(1.0, (rng.uniform(*FAR_GROUND_RANGE) / distance) ** 2)
     keep[ground] = rng.random(len(ground)) < chance
     return keep
-
-
-def _object_returns_kept(
-    points: np.ndarray, instance: np.ndarray, rng: np.random.Generator
-) -> np.ndarray:
-    """Which returns of road users and clutter survive their surfaces (in
-    :data:`OBJECT_LOSS_SHARE` of sweeps; all survive otherwise): each obstacle keeps a
-    share of its returns drawn from :data:`OBJECT_KEPT`, as dark paint, glass and chrome
-    send too little light back; the background (façades, fences, trees) keeps a share
-    drawn from the same range per :data:`BACKGROUND_BLOCK`-metre block, so that a thin
-    outline alone never says "road user".
-
-    Measured on the two unlabelled KITTI sweeps: the ten car-shaped clusters within 40 m
-    (returns 0.25-2.5 m above the local ground) return 0.24-0.80 of the rays their
-    outline spans (median 0.52); rendered HDL-64E cars 0.65-0.85 (median 0.75, 63 cars
-    on 12 held-out streets). Real fill over rendered: 0.3-1.1.
-    """
-    keep = np.ones(len(instance), bool)
-    if rng.random() >= OBJECT_LOSS_SHARE:
-        return keep
-    chance = np.ones(len(instance))
-    road_user = instance >= 0
-    objects = int(instance.max()) + 1 if road_user.any() else 0
-    chance[road_user] = rng.uniform(*OBJECT_KEPT, objects)[instance[road_user]]
-    background = instance == BACKGROUND_INSTANCE
-    block = np.floor(points[background, :2] / BACKGROUND_BLOCK).astype(np.int64)
-    _, which = np.unique(block, axis=0, return_inverse=True)
-    chance[background] = rng.uniform(*OBJECT_KEPT, int(which.max()) + 1 if len(which) else 0)[
-        which.ravel()
-    ]
-    return rng.random(len(instance)) < chance
 
 
 def _in_camera_view(points: np.ndarray, azimuth: np.ndarray) -> np.ndarray:
