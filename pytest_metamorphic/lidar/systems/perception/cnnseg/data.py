@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 
-from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.model.sensors import (
@@ -48,7 +47,7 @@ from pytest_metamorphic.lidar.synthetic.description import BACKGROUND_INSTANCE, 
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
 from pytest_metamorphic.lidar.synthetic.streetscape import street_scene
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import GridSpec, bev_features
-from pytest_metamorphic.lidar.systems.perception.cnnseg.targets import cell_targets
+from pytest_metamorphic.lidar.systems.perception.cnnseg.targets import cell_targets, instance_field
 
 __all__ = [
     "CROP",
@@ -99,11 +98,7 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
     Boxes move with the tilt, and their ``points`` count what is left of each obstacle.
     """
     cloud = frame.cloud
-    if "instance" not in cloud.fields:
-        raise InvalidArgument(
-            f"degrade needs a rendered frame: {frame!r} has no 'instance' field (which return "
-            "belongs to which obstacle, the road or the background)"
-        )
+    instance = instance_field(frame, "degrade")
     points = cloud.points.astype(np.float64)
     keep = rng.random(len(points)) >= rng.uniform(0.0, 0.12)
     rings = cloud.fields.get("ring")
@@ -114,7 +109,6 @@ def degrade(frame: Frame, rng: np.random.Generator) -> Frame:
     for _ in range(int(rng.integers(0, 4)) if rng.random() < 0.25 else 0):  # lost packets
         start, width = rng.uniform(-math.pi, math.pi), math.radians(rng.uniform(0.5, 8.0))
         keep &= ((azimuth - start) % (2 * math.pi)) >= width
-    instance = np.asarray(cloud.fields["instance"])
     keep &= _far_ground_kept(points, instance, rng)
     if rng.random() < 0.25:  # a camera's view, as KITTI's published crops
         keep &= _in_camera_view(points, azimuth)

@@ -20,7 +20,7 @@ from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import GridSpec, point_cells
 from pytest_metamorphic.lidar.systems.perception.cnnseg.network import CLASSES
 
-__all__ = ["Targets", "cell_targets"]
+__all__ = ["Targets", "cell_targets", "instance_field"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,18 @@ class Targets:
     height: NDArray[np.float32]
 
 
+def instance_field(frame: Frame, use: str) -> NDArray[np.integer]:
+    """The renderer's per-return ``instance`` field of ``frame`` (obstacle index,
+    ground or background), or :class:`InvalidArgument` naming it and ``use``: a
+    recorded sweep has none."""
+    if "instance" not in frame.cloud.fields:
+        raise InvalidArgument(
+            f"{use}: {frame!r} has no 'instance' field (which return belongs to which "
+            "obstacle, the road or the background), so it is not a rendered frame"
+        )
+    return np.asarray(frame.cloud.fields["instance"])
+
+
 def cell_targets(frame: Frame, grid: GridSpec | None = None, *, min_points: int = 1) -> Targets:
     """Targets for a rendered frame (one with an ``instance`` field and its boxes).
 
@@ -53,12 +65,8 @@ def cell_targets(frame: Frame, grid: GridSpec | None = None, *, min_points: int 
     ``min_points`` returns in the frame's cloud (a car seen by two returns is nothing a
     network can tell from a post).
     """
-    if "instance" not in frame.cloud.fields:
-        raise InvalidArgument(
-            f"{frame!r} has no 'instance' field: training targets need a rendered frame"
-        )
+    instance = instance_field(frame, "training targets").astype(np.int64)
     grid = grid or GridSpec()
-    instance = np.asarray(frame.cloud.fields["instance"]).astype(np.int64)
     boxes = list(frame.boxes)
     if len(boxes) and instance.size and instance.max() >= len(boxes):
         raise InvalidArgument(f"{frame!r}: instance ids exceed its {len(boxes)} boxes")
