@@ -132,3 +132,9 @@ def test_degrading_a_recorded_frame_names_the_missing_field(street: Frame) -> No
     recorded = Frame(PointCloud(street.cloud.points), roi=street.roi)  # as a .bin holds
     with pytest.raises(InvalidArgument, match="no 'instance' field"):
         degrade(recorded, np.random.default_rng(0))
+
+
+def test_targets_of_a_recorded_frame_name_the_missing_field(street: Frame) -> None:
+    recorded = Frame(PointCloud(street.cloud.points), roi=street.roi)
+    with pytest.raises(InvalidArgument, match=r"training targets: .* no 'instance' field"):
+        cell_targets(recorded, SHIPPED_GRID)
