@@ -31,7 +31,8 @@ Ends with ``RESULT kitti_car_recall=... kitti_false_cars_per_sweep=... mr1_full_
 mr1_roi_1000=...`` (recall and false cars within the grid's 70 m; the MR1 keys are the
 paper's check, |O| > |O'|, on the real sweeps).
 
-    python bench/learned.py [--parts quality,mr1,batches] [--workers N] [--model PATH]
+    python bench/learned.py [--parts quality,mr1,batches,validation] [--workers N]
+                            [--model PATH] [--max-lift METRES]
 """
 
 from __future__ import annotations
@@ -71,7 +72,10 @@ from pytest_metamorphic.lidar.io.kitti import (  # noqa: E402
 from pytest_metamorphic.lidar.judging.evaluation import Evaluation, kitti_label_region  # noqa: E402
 from pytest_metamorphic.lidar.judging.tolerance import LEARNED  # noqa: E402
 from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
-from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg import (  # noqa: E402
+    CNNSegmentation,
+    CNNSegParams,
+)
 from pytest_metamorphic.lidar.systems.perception.cnnseg.data import held_out_frame  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg.quality import detection_quality  # noqa: E402
 from pytest_metamorphic.reports.campaign import format_table  # noqa: E402
@@ -87,7 +91,23 @@ GRID_RANGE = 70.0
 
 
 def _detector(full_cloud: bool, model: Any, **options: Any) -> CNNSegmentation:
-    return CNNSegmentation(full_cloud, network=model, **options)
+    """``model`` is ``(ONNX path or None, CNNSegParams)``: picklable for the workers."""
+    network, params = model
+    return CNNSegmentation(full_cloud, network=network, params=params, **options)
+
+
+def validation(model: Any, streets: int = 40) -> dict[str, float]:
+    """Car F1 within 70 m on the validation streets ``held_out_frame(1000 + i)``: what the
+    model's and the detector's choices were made on (never a real sweep)."""
+    print(f"== validation: {streets} streets held_out_frame(1000 + i), cars within 70 m ==")
+    frames = (held_out_frame(1000 + i) for i in range(streets))
+    car = detection_quality(_detector(True, model), frames, max_range=GRID_RANGE)["car"]
+    precision, recall = car.precision or 0.0, car.recall or 0.0
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+    print(f"found {car.true_positives}, false {car.false_positives}, missed "
+          f"{car.false_negatives}: recall {recall:.3f}, precision {precision:.3f}, "
+          f"F1 {f1:.4f}")  # fmt: skip
+    return {"validation_car_f1": f1}
 
 
 def labelled_sweeps() -> list[Frame]:
@@ -304,18 +324,26 @@ def main() -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--parts", default="quality,mr1,batches", help="which parts to run (comma-separated)"
+        "--max-lift", type=float, default=None, help="CNNSegParams.max_lift (default: None)"
+    )
+    parser.add_argument(
+        "--parts",
+        default="quality,mr1,batches",
+        help="which parts to run (comma-separated; also: validation)",
     )
     args = parser.parse_args()
     parts = set(args.parts.split(","))
+    model = (args.model, CNNSegParams(max_lift=args.max_lift))
     keys: dict[str, float] = {}
+    if "validation" in parts:
+        keys.update(validation(model))
     if "quality" in parts:
-        keys.update(quality(args.held_out, args.model))
+        keys.update(quality(args.held_out, model))
     if "batches" in parts:
         # Before the campaigns: their worker processes must not share the cores with it.
-        keys["batch_speedup"] = batches(args.batch_sources, args.threads, args.model)
+        keys["batch_speedup"] = batches(args.batch_sources, args.threads, model)
     if "mr1" in parts:
-        results = mr1("real", None, args.seed, args.workers, args.real_followups, args.model)
+        results = mr1("real", None, args.seed, args.workers, args.real_followups, model)
         full, roi = results[True].sizes[1000], results[False].sizes[1000]
         keys.update(
             mr1_full_1000=full.fewer / full.pairs,
@@ -325,7 +353,7 @@ def main() -> None:
             mr1_pairs_1000=full.pairs,
         )
         if args.sources:
-            mr1("rendered", args.sources, args.seed, args.workers, 1, args.model)
+            mr1("rendered", args.sources, args.seed, args.workers, 1, model)
     print("RESULT " + " ".join(f"{key}={value:.4f}" for key, value in keys.items()))
 
 

@@ -17,6 +17,7 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (
     degrade,
     example,
     training_frame,
+    training_render,
 )
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import SHIPPED_GRID
 from pytest_metamorphic.lidar.systems.perception.cnnseg.targets import cell_targets
@@ -36,6 +37,15 @@ def test_degrading_is_reproducible_and_keeps_box_counts_true(street: Frame) -> N
     for index, box in enumerate(first.boxes):
         assert box.points == int((instance == index).sum())
     assert first.cloud.points[:, 3].min() >= 0.0 and first.cloud.points[:, 3].max() <= 1.0
+
+
+def test_a_training_scene_comes_as_rendered_and_as_training_sees_it() -> None:
+    # bench/learned_gap.py measures both halves against real sweeps: the second must be
+    # exactly what training reads, the first the same scene before degrading.
+    raw, seen = training_render(7)
+    assert np.array_equal(seen.cloud.points, training_frame(7).cloud.points)
+    assert raw.sensor is seen.sensor and len(raw.boxes) == len(seen.boxes)
+    assert len(seen.cloud) < len(raw.cloud)
 
 
 def test_dead_lasers_take_whole_rings_away(street: Frame) -> None:

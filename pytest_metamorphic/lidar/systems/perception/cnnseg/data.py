@@ -58,6 +58,7 @@ __all__ = [
     "example",
     "held_out_frame",
     "training_frame",
+    "training_render",
 ]
 
 SCENE_OPTIONS: dict[str, Any] = {
@@ -211,12 +212,18 @@ def _rotation(pitch: float, roll: float) -> np.ndarray:
     return about_y @ about_x
 
 
-def training_frame(seed: int) -> Frame:
-    """The rendered and degraded frame of training scene ``seed``."""
+def training_render(seed: int) -> tuple[Frame, Frame]:
+    """Training scene ``seed`` as the renderer gives it and as training sees it (after
+    :func:`degrade`): ``bench/learned_gap.py`` measures both against real sweeps."""
     rng = np.random.default_rng(seed)
     scene, sensor = _scene_and_sensor(rng, f"train-{seed}")
     frame = render(scene, beams=sensor, seed=int(rng.integers(2**31)))
-    return degrade(frame, rng)
+    return frame, degrade(frame, rng)
+
+
+def training_frame(seed: int) -> Frame:
+    """The rendered and degraded frame of training scene ``seed``."""
+    return training_render(seed)[1]
 
 
 def held_out_frame(index: int) -> Frame:

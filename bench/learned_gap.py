@@ -1,0 +1,254 @@
+"""How the learned detector's training sweeps differ from real ones, measured without labels.
+
+The rows of the model card's "How it was chosen" table (``docs/learned-model.md``), on the
+two unlabelled KITTI crops of the shared data (mmdetection3d's 000008, PointPillars'
+testing 000002: no quality number counts them) against the HDL-64E sweeps of held-out
+training scenes (``held_out_frame(i)``'s scenes), as the renderer gives them ("rendered")
+and as training sees them after ``degrade`` ("degraded"). Everything in KITTI's camera
+wedge (x > 0, azimuth within 40 degrees), the ground found by the detectors' own
+estimator (``perception.ground.ground_heights``, a return within 0.25 m of it is ground),
+the same estimator on every sweep; a road return is a ground return at least 1.4 m
+under the sensor (KITTI's HDL-64E is 1.73 m above the road; near a camera crop's lower
+edge, where the road is out of sight, the lowest return of a car would be its own ground):
+
+* road intensity: median intensity of road returns 5-40 m away;
+* zero share: the share of the returns above the ground, 5-40 m away, that read exactly 0;
+* road density: road returns per m² of the wedge 20-30 m and 30-45 m away;
+* nearest road: the nearest road return and its elevation angle;
+* car return share: car-shaped clusters within 40 m (returns 0.25-2.5 m above the
+  ground, 8-connected on 0.25 m cells, footprint 2.5-5.5 x at most 2.3 m along its
+  principal axes, 1.1-2.0 m tall, at least 30 returns): the returns over the rays
+  its outline spans (the HDL-64E's lasers between its lowest and highest elevation times
+  its azimuth span over the sweep's azimuth step, the median gap between neighbouring
+  returns of one laser);
+* the shipped detector on the same sweeps (``--detector``, whole-sweep features): the
+  share of those car-shaped clusters with a reported car whose centre lies within 2 m of
+  theirs, a label-free hint of recall; and cars per sweep whose box floats more than 1 m
+  above the ground under it (a symptom of walls and foliage read as cars).
+
+Ends with ``RESULT`` keys, each ``<measure>_real`` (both crops together) and
+``<measure>_degraded`` (the held-out sweeps together).
+
+    python bench/learned_gap.py [--scenes 60] [--detector]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from pytest_metamorphic.lidar.io.bin import read_bin  # noqa: E402
+from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
+from pytest_metamorphic.lidar.model.sensors import HDL64E  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.clustering import cluster_points  # noqa: E402
+from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (  # noqa: E402
+    HELD_OUT_SEED_OFFSET,
+    training_render,
+)
+from pytest_metamorphic.lidar.systems.perception.ground import ground_heights  # noqa: E402
+
+DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
+CROPS = {"000002": DATA / "kitti_pointpillars_demo" / "test" / "000002.bin",
+         "000008": DATA / "mmdet3d_demo" / "kitti" / "000008.bin"}  # fmt: skip
+WEDGE = math.radians(40.0)
+GROUND_TOLERANCE = 0.25  # metres: the ground estimator's own tolerance
+ROAD_BELOW = 1.4  # metres under the sensor a road return lies (KITTI's: 1.73 m up)
+LASERS = np.sort(HDL64E.elevations)
+
+
+@dataclass
+class Gap:
+    """What one group of sweeps measures (lists hold one value per sweep or per car)."""
+
+    road_intensity: list[float] = field(default_factory=list)
+    zero_share: list[float] = field(default_factory=list)
+    density_20_30: list[float] = field(default_factory=list)
+    density_30_45: list[float] = field(default_factory=list)
+    nearest_road: list[float] = field(default_factory=list)
+    nearest_elevation: list[float] = field(default_factory=list)
+    car_share: list[float] = field(default_factory=list)
+    cars_found: list[bool] = field(default_factory=list)
+    floating_cars: list[int] = field(default_factory=list)
+
+
+def _azimuth_step(points: np.ndarray, row: np.ndarray) -> float:
+    """The sweep's azimuth step: the median gap between neighbouring returns of a laser."""
+    azimuth = np.arctan2(points[:, 1], points[:, 0])
+    order = np.lexsort((azimuth, row))
+    gaps = np.diff(azimuth[order])
+    same = np.diff(row[order]) == 0
+    gaps = gaps[same & (gaps > 1e-6)]
+    return float(np.median(gaps)) if len(gaps) else math.radians(0.18)
+
+
+def _car_clusters(points: np.ndarray, above: np.ndarray) -> list[np.ndarray]:
+    """Indices of each car-shaped cluster within 40 m (see the module docstring)."""
+    candidate = np.flatnonzero((above > 0.25) & (above < 2.5)
+                               & (np.hypot(points[:, 0], points[:, 1]) < 40.0))  # fmt: skip
+    clusters = cluster_points(points[candidate, :2])
+    cars = []
+    for label in range(clusters.count):
+        members = candidate[clusters.labels == label]
+        if len(members) < 30:
+            continue
+        xy = points[members, :2] - points[members, :2].mean(axis=0)
+        _, _, axes = np.linalg.svd(xy, full_matrices=False)
+        extent = np.ptp(xy @ axes.T, axis=0)
+        tall = float(np.max(above[members]))
+        if 2.5 <= extent[0] <= 5.5 and extent[1] <= 2.3 and 1.1 <= tall <= 2.0:
+            cars.append(members)
+    return cars
+
+
+def _car_share(points: np.ndarray, members: np.ndarray, step: float) -> float:
+    """Returns over the rays the cluster's outline spans."""
+    xyz = points[members, :3]
+    distance = np.hypot(xyz[:, 0], xyz[:, 1])
+    elevation = np.arctan2(xyz[:, 2], distance)
+    lasers = int(np.searchsorted(LASERS, elevation.max(), side="right")
+                 - np.searchsorted(LASERS, elevation.min(), side="left"))  # fmt: skip
+    azimuth = np.unwrap(np.sort(np.arctan2(xyz[:, 1], xyz[:, 0])))
+    rays = max(lasers, 1) * (np.ptp(azimuth) / step + 1.0)
+    return float(min(1.0, len(members) / rays))
+
+
+def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
+    """Add one sweep's measures to ``gap``."""
+    points = np.asarray(frame.cloud.points, dtype=np.float64)
+    wedge = (points[:, 0] > 0) & (np.abs(np.arctan2(points[:, 1], points[:, 0])) < WEDGE)
+    points = points[wedge]
+    ground_z = ground_heights(points[:, :3].astype(np.float32)).astype(np.float64)
+    above = points[:, 2] - ground_z
+    ground = above < GROUND_TOLERANCE
+    distance = np.hypot(points[:, 0], points[:, 1])
+    near = (distance >= 5.0) & (distance <= 40.0)
+    # Where the road is out of sight (a camera crop's near edge) the lowest return of a
+    # car is its own ground: road returns must also lie 1.4 m under the sensor (KITTI's
+    # is 1.73 m above the road).
+    road = ground & (points[:, 2] < -ROAD_BELOW)
+    intensity = points[:, 3]
+    if np.any(road & near):
+        gap.road_intensity.append(float(np.median(intensity[road & near])))
+    if np.any(~ground & near):
+        gap.zero_share.append(float(np.mean(intensity[~ground & near] == 0.0)))
+    for low, high, into in ((20.0, 30.0, gap.density_20_30), (30.0, 45.0, gap.density_30_45)):
+        area = WEDGE / math.pi * math.pi * (high**2 - low**2)  # 80 of 360 degrees
+        into.append(np.count_nonzero(road & (distance >= low) & (distance < high)) / area)
+    if np.any(road):
+        nearest = int(np.argmin(np.where(road, distance, np.inf)))
+        gap.nearest_road.append(float(distance[nearest]))
+        gap.nearest_elevation.append(
+            math.degrees(math.atan2(points[nearest, 2], distance[nearest]))
+        )
+    elevation = np.arctan2(points[:, 2], np.maximum(distance, 0.1))
+    row = np.abs(elevation[:, None] - LASERS[None, :]).argmin(axis=1)
+    step = _azimuth_step(points, row)
+    cars = _car_clusters(points, above)
+    gap.car_share.extend(_car_share(points, members, step) for members in cars)
+    if detector is not None:
+        _judge_detections(frame, points, cars, gap, detector)
+
+
+def _judge_detections(
+    frame: Frame, points: np.ndarray, cars: list[np.ndarray], gap: Gap, detector: object
+) -> None:
+    boxes = [b for b in detector(frame.cloud, frame.roi) if b.label == "car"]  # type: ignore[operator]
+    centres = np.array([b.center[:2] for b in boxes]).reshape(-1, 2)
+    for members in cars:
+        centre = points[members, :2].mean(axis=0)
+        gap.cars_found.append(bool(len(centres))
+                              and float(np.min(np.hypot(*(centres - centre).T))) < 2.0)  # fmt: skip
+    wedge_boxes = [b for b in boxes if b.center[0] > 0
+                   and abs(math.atan2(b.center[1], b.center[0])) < WEDGE]  # fmt: skip
+    if not wedge_boxes:
+        gap.floating_cars.append(0)
+        return
+    all_points = np.asarray(frame.cloud.points[:, :3], dtype=np.float32)
+    probes = np.array([[*b.center[:2], b.center[2] - b.size[2] / 2] for b in wedge_boxes])
+    under = ground_heights(np.vstack([all_points, probes.astype(np.float32)]))[-len(probes) :]
+    lift = probes[:, 2] - under
+    gap.floating_cars.append(int(np.count_nonzero(np.isfinite(lift) & (lift > 1.0))))
+
+
+def _summary(values: list[float], digits: int = 2) -> str:
+    if not values:
+        return "n/a"
+    low, mid, high = np.percentile(values, [0, 50, 100])
+    return f"{low:.{digits}f}-{high:.{digits}f} (median {mid:.{digits}f}, n={len(values)})"
+
+
+ROWS = (
+    ("road intensity, 5-40 m (median)", "road_intensity", 2),
+    ("returns above the road reading exactly 0", "zero_share", 2),
+    ("road returns per m², 20-30 m", "density_20_30", 1),
+    ("road returns per m², 30-45 m", "density_30_45", 1),
+    ("nearest road return, m", "nearest_road", 1),
+    ("its elevation, degrees", "nearest_elevation", 1),
+    ("share of a car's rays that return (car-shaped clusters, 40 m)", "car_share", 2),
+)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenes", type=int, default=60, help="held-out scenes to draw")
+    parser.add_argument("--detector", action="store_true", help="also run the shipped detector")
+    args = parser.parse_args()
+    detector = None
+    if args.detector:
+        from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation
+
+        detector = CNNSegmentation(True)
+    groups: dict[str, Gap] = {}
+    for name, path in CROPS.items():
+        if not path.is_file():
+            sys.exit(f"{path} is missing: the gap is measured on the unlabelled KITTI crops")
+        groups[f"crop {name}"] = gap = Gap()
+        measure(Frame(read_bin(path), source=str(path)), gap, detector)
+    rendered, degraded = Gap(), Gap()
+    for index in range(args.scenes):
+        raw, seen = training_render(HELD_OUT_SEED_OFFSET + index)
+        if raw.sensor is not HDL64E:
+            continue
+        measure(raw, rendered, None)
+        measure(seen, degraded, detector)
+    groups["rendered"], groups["degraded"] = rendered, degraded
+    sweeps = len(rendered.road_intensity)
+    print(f"== the gap: 2 unlabelled KITTI crops against {sweeps} held-out HDL-64E sweeps ==")
+    for label, key, digits in ROWS:
+        print(f"\n{label}")
+        for name, gap in groups.items():
+            print(f"  {name:<12} {_summary(getattr(gap, key), digits)}")
+    real = Gap()
+    for name in CROPS:
+        for key, values in vars(groups[f"crop {name}"]).items():
+            getattr(real, key).extend(values)
+    keys: dict[str, float] = {}
+    for _, key, _ in ROWS:
+        keys[f"{key}_real"] = float(np.median(getattr(real, key)))
+        keys[f"{key}_degraded"] = float(np.median(getattr(degraded, key)))
+    if detector is not None:
+        for name, gap in (("real", real), ("degraded", degraded)):
+            found, floating = gap.cars_found, gap.floating_cars
+            print(f"\n{name}: {sum(found)} of {len(found)} car-shaped clusters with a car "
+                  f"within 2 m; {sum(floating)} floating cars in {len(floating)} "
+                  "sweeps")  # fmt: skip
+            keys[f"cluster_cars_found_{name}"] = float(np.mean(found)) if found else 0.0
+            keys[f"floating_cars_per_sweep_{name}"] = float(np.mean(floating))
+    print("RESULT " + " ".join(f"{key}={value:.4f}" for key, value in keys.items()))
+
+
+if __name__ == "__main__":
+    main()
