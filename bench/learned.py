@@ -324,7 +324,10 @@ def main() -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--max-lift", type=float, default=None, help="CNNSegParams.max_lift (default: None)"
+        "--max-lift",
+        type=float,
+        default=CNNSegParams().max_lift,
+        help="CNNSegParams.max_lift in metres (0: none)",
     )
     parser.add_argument(
         "--parts",
@@ -333,7 +336,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     parts = set(args.parts.split(","))
-    model = (args.model, CNNSegParams(max_lift=args.max_lift))
+    model = (args.model, CNNSegParams(max_lift=args.max_lift or None))
     keys: dict[str, float] = {}
     if "validation" in parts:
         keys.update(validation(model))

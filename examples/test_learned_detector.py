@@ -124,9 +124,9 @@ def test_mr1_catches_features_built_from_the_whole_sweep_on_a_real_sweep() -> No
     def check(frames: list[Frame]) -> list[list[Box]]:
         return full_cloud.detect_batch(frames)
 
-    # One point 54.5 m away, outside the wedge, hides a car 4.8 m inside it, 4.6 m from
-    # the point (reduced from 1000 points, proven 1-minimal).
-    with pytest.raises(MetamorphicViolation, match=r"hidden: car at \(44\.9, -31\.4\)"):
+    # Two points outside the wedge, 7-8 m from it, turn a cyclist 2.9 m inside it into a
+    # "pedestrian" (reduced from 1000 points, proven 1-minimal).
+    with pytest.raises(MetamorphicViolation, match=r"hidden: cyclist at \(12\.2, -6\.5\)"):
         check()
 
 

@@ -89,14 +89,16 @@ def test_golden_output_on_a_fixed_frame() -> None:
 def test_it_finds_most_cars_within_40_m_on_held_out_streets() -> None:
     # Held-out streets of the training distribution: parked rows, façades, hedges, vans
     # (cars), other sensors, dead lasers, far road returns lost, camera crops. Measured on
-    # these 20 (2026-11-29, the model trained in session 27): cars 117 of 133 found (0.88),
-    # precision 0.89 (130 of 133 at IoU 0.25); pedestrians 6 of 7 and cyclists 9 of 15 at
-    # IoU 0.5 (7 of 7 and 10 of 15 at IoU 0.25).
+    # these 20 (2026-11-29, the model trained in session 27, max_lift 1 m): cars 114 of
+    # 133 found (0.86), precision 0.90 (125 of 133 at IoU 0.25: max_lift drops three cars
+    # hidden behind parked rows up to their windows); pedestrians 6 of 7 and cyclists 9 of
+    # 15 at IoU 0.5 (7 of 7 and 10 of 15 at IoU 0.25). The bars leave a car or two of
+    # room for other CPUs' rounding.
     frames = [held_out_frame(i) for i in range(20)]
     score = detection_quality(detector(True), frames)
-    assert score["car"].recall >= 0.85 and score["car"].precision >= 0.85
+    assert score["car"].recall >= 0.83 and score["car"].precision >= 0.85
     loose = detection_quality(detector(True), frames, min_iou=0.25)
-    assert loose["car"].recall >= 0.95
+    assert loose["car"].recall >= 0.92
     assert loose["pedestrian"].recall >= 0.7 and loose["cyclist"].recall >= 0.6
 
 
@@ -125,8 +127,8 @@ def _labelled_real_sweeps(root: Path) -> tuple[list[Frame], dict[str, KittiDontC
 
 def test_on_the_labelled_real_sweeps_it_finds_half_the_cars(shared_data: Path) -> None:
     # Where the model stands on real sweeps it never trained on (bench/learned.py, model
-    # card): 3 of the 6 labelled cars within the grid's 70 m, 21 false "cars" in 7 sweeps,
-    # 8 of them within 40 m (KITTI's rules: DontCare regions and objects too sparse to
+    # card): 3 of the 6 labelled cars within the grid's 70 m, 16 false "cars" in 7 sweeps,
+    # 7 of them within 40 m (KITTI's rules: DontCare regions and objects too sparse to
     # score count neither way). A guard against getting worse, not a claim of competence.
     frames, regions = _labelled_real_sweeps(shared_data)
 
@@ -136,9 +138,9 @@ def test_on_the_labelled_real_sweeps_it_finds_half_the_cars(shared_data: Path) -
     score = detection_quality(detector(True), frames, max_range=70.0, ignore=dont_care)
     assert score["car"].true_positives + score["car"].false_negatives == 6
     assert score["car"].true_positives >= 3
-    assert score["car"].false_positives <= 26
+    assert score["car"].false_positives <= 20
     near = detection_quality(detector(True), frames, max_range=40.0, ignore=dont_care)
-    assert near["car"].false_positives <= 10
+    assert near["car"].false_positives <= 9
 
 
 def test_a_detector_travels_to_other_processes_without_its_session() -> None:
