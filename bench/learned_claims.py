@@ -11,8 +11,10 @@ Hypothesis test (generation only: the first violation is reported as found, not
 reduced) with ``--followups`` follow-ups per source and ``--examples`` sources, for
 ROI-only features (``full_cloud=False``) and whole-sweep features (``True``). Sources:
 ``--source streets``, the strategies' rendered streets within 50 m (the example's), or
-``--source real``, the nine real KITTI sweeps of the shared data (camera wedge as ROI).
-Relations run in ``--workers`` processes.
+``--source real``, the nine real KITTI sweeps of the shared data (camera wedge as ROI), or
+``--source recording:VLP-16`` (``VLP-32C``, ``OS1-64``), one sweep of the example's
+recordings of other sensors (``examples/test_your_recordings.py``, a 7 m corridor as ROI;
+use ``--examples 1``). Relations run in ``--workers`` processes.
 
     python bench/learned_claims.py [--examples 250] [--followups 4] [--source streets]
 
@@ -56,6 +58,14 @@ def _sources(kind: str) -> Any:
 
         sweeps = RealSweeps()
         return st.sampled_from([sweeps(None, i) for i in range(len(sweeps))])  # type: ignore[arg-type]
+    if kind.startswith("recording:"):
+        from judged_share import RECORDINGS  # the example's VLP-16, VLP-32C and OS1-64
+
+        from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+        from pytest_metamorphic.lidar.roi import corridor_roi
+
+        path, topic = RECORDINGS[kind.split(":", 1)[1]]
+        return st.just(FrameCatalog(path, topic=topic, roi=corridor_roi(width=7.0))[0])
     return mst.scene_frames(mst.scenes(max_distance=50.0))
 
 
@@ -96,7 +106,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--examples", type=int, default=250)
     parser.add_argument("--followups", type=int, default=4)
-    parser.add_argument("--source", choices=("streets", "real"), default="streets")
+    parser.add_argument(
+        "--source",
+        choices=("streets", "real", "recording:VLP-16", "recording:VLP-32C", "recording:OS1-64"),
+        default="streets",
+    )
     parser.add_argument("--relations", default="", help="comma-separated name prefixes")
     parser.add_argument("--modes", default="roi,full")
     parser.add_argument("--workers", type=int, default=2)
