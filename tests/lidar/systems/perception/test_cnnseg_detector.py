@@ -182,14 +182,17 @@ def test_max_lift_drops_what_floats_above_the_ground_and_keeps_road_users() -> N
     wall_top = _rear_face(15.0, 0.0)
     wall_top[:, 2] += 1.3
     floating = PointCloud(_street(wall_top))
-    assert [box.label for box in CNNSegmentation(network=network)(floating)] == ["car"]
-    lifted = CNNSegmentation(network=network, params=CNNSegParams(max_lift=1.0))
+    apollo = CNNSegmentation(network=network, params=CNNSegParams(max_lift=None))
+    assert [box.label for box in apollo(floating)] == ["car"]
+    lifted = CNNSegmentation(network=network)  # max_lift=1.0, the default
+    assert CNNSegParams().max_lift == 1.0
     assert lifted(floating) == []
     # A car's rear face reaches down to 0.3 m above the road: kept.
     (box,) = lifted(PointCloud(_street(_rear_face(15.0, 0.0))))
     assert box.label == "car"
     # The limit is on the lowest return: 1.6 m lets the wall top (lowest 1.5 m) through.
     assert len(CNNSegmentation(network=network, params=CNNSegParams(max_lift=1.6))(floating)) == 1
-    for bad in (0, -1.0, math.inf, True, "1"):
+    assert CNNSegParams(max_lift=np.float32(1.5)).max_lift == 1.5
+    for bad in (0, -1.0, math.inf, math.nan, True, "1"):
         with pytest.raises(InvalidArgument, match=r"max_lift=.* must be None or a number > 0"):
             CNNSegParams(max_lift=bad)  # type: ignore[arg-type]

@@ -30,6 +30,7 @@ ROI's edge, the defect Zhou & Sun's MR1 found.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -116,7 +117,7 @@ class CNNSegParams:
         if not (math.isfinite(self.edge_margin) and self.edge_margin >= 0):
             raise InvalidArgument(f"edge_margin={self.edge_margin!r} must be >= 0")
         if self.max_lift is not None and not (
-            isinstance(self.max_lift, (int, float))
+            isinstance(self.max_lift, numbers.Real)
             and not isinstance(self.max_lift, bool)
             and math.isfinite(self.max_lift)
             and self.max_lift > 0
