@@ -91,7 +91,7 @@ def test_it_finds_most_cars_within_40_m_on_held_out_streets() -> None:
     # (cars), other sensors, dead lasers, far road returns lost, camera crops. Measured on
     # these 20 (2026-11-29, the model trained in session 27, max_lift 1 m): cars 114 of
     # 133 found (0.86), precision 0.90 (125 of 133 at IoU 0.25: max_lift drops three cars
-    # hidden behind parked rows up to their windows); pedestrians 6 of 7 and cyclists 9 of
+    # hidden up to their windows, mostly behind other cars); pedestrians 6 of 7, cyclists 9 of
     # 15 at IoU 0.5 (7 of 7 and 10 of 15 at IoU 0.25). The bars leave a car or two of
     # room for other CPUs' rounding.
     frames = [held_out_frame(i) for i in range(20)]
