@@ -21,8 +21,8 @@ edge, where the road is out of sight, the lowest return of a car would be its ow
   its outline spans (the HDL-64E's lasers between its lowest and highest elevation times
   its azimuth span over the sweep's azimuth step, the median gap between neighbouring
   returns of one laser);
-* the shipped model on the same sweeps (``--detector``, whole-sweep features, without
-  ``CNNSegParams.max_lift``, which drops what floats): the share of those car-shaped
+* the shipped model on the same sweeps (``--detector``, whole-sweep features, no ROI,
+  without ``CNNSegParams.max_lift``, which drops what floats): the share of those car-shaped
   clusters with a reported car whose centre lies within 2 m of theirs, a label-free hint
   of recall; and cars per sweep whose box floats more than 1 m above the ground under it
   (a symptom of wall tops and foliage read as cars, what ``max_lift`` was chosen on).
@@ -146,7 +146,7 @@ def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
     if np.any(~ground & near):
         gap.zero_share.append(float(np.mean(intensity[~ground & near] == 0.0)))
     for low, high, into in ((20.0, 30.0, gap.density_20_30), (30.0, 45.0, gap.density_30_45)):
-        area = WEDGE / math.pi * math.pi * (high**2 - low**2)  # 80 of 360 degrees
+        area = WEDGE * (high**2 - low**2)  # the sector's 2 * WEDGE radians
         into.append(np.count_nonzero(road & (distance >= low) & (distance < high)) / area)
     if np.any(road):
         nearest = int(np.argmin(np.where(road, distance, np.inf)))
@@ -166,7 +166,9 @@ def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
 def _judge_detections(
     frame: Frame, points: np.ndarray, cars: list[np.ndarray], gap: Gap, detector: object
 ) -> None:
-    boxes = [b for b in detector(frame.cloud, frame.roi) if b.label == "car"]  # type: ignore[operator]
+    # No ROI on either side: the crops have none, and a rendered street's ROI (its road)
+    # would hide what the network reports over walls and hedges beside it.
+    boxes = [b for b in detector(frame.cloud, None) if b.label == "car"]  # type: ignore[operator]
     centres = np.array([b.center[:2] for b in boxes]).reshape(-1, 2)
     for members in cars:
         centre = points[members, :2].mean(axis=0)

@@ -96,7 +96,7 @@ class CNNSegParams:
         stands before it, not a road user (a car hidden behind another up to its roof is
         lost too). None keeps them, as Apollo does. On the two unlabelled KITTI crops the
         shipped model reports one such "car" per sweep, on held-out rendered streets one
-        in 25 sweeps (``bench/learned_gap.py``); 1 m was fixed from that before it was
+        in 12 sweeps (``bench/learned_gap.py``); 1 m was fixed from that before it was
         measured anywhere else, and it passed the rule the model is chosen by
         (``docs/learned-model.md``).
     """
