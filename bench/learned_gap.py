@@ -56,15 +56,18 @@ from pytest_metamorphic.lidar.model.frame import Frame  # noqa: E402
 from pytest_metamorphic.lidar.model.sensors import HDL64E  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.clustering import cluster_points  # noqa: E402
 from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (  # noqa: E402
+    CAMERA_HALF_WIDTH,
     HELD_OUT_SEED_OFFSET,
     training_render,
 )
 from pytest_metamorphic.lidar.systems.perception.ground import ground_heights  # noqa: E402
 
-DATA = Path(os.environ.get("PYTEST_METAMORPHIC_DATA", ROOT.parent / "shared" / "data"))
-CROPS = {"000002": DATA / "kitti_pointpillars_demo" / "test" / "000002.bin",
-         "000008": DATA / "mmdet3d_demo" / "kitti" / "000008.bin"}  # fmt: skip
-WEDGE = math.radians(40.0)
+sys.path.insert(0, str(ROOT / "bench"))
+from learned import UNLABELLED  # noqa: E402
+
+# The unlabelled crops bench/learned.py also runs MR1 on, by name (000002, 000008).
+CROPS = {path.stem: path for path in sorted(UNLABELLED, key=lambda path: path.stem)}
+WEDGE = math.radians(CAMERA_HALF_WIDTH)  # KITTI's camera wedge, as degrade cuts it
 GROUND_TOLERANCE = 0.25  # metres: the ground estimator's own tolerance
 ROAD_BELOW = 1.4  # metres under the sensor a road return lies (KITTI's: 1.73 m up)
 LASERS = np.sort(HDL64E.elevations)
