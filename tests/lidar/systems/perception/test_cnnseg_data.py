@@ -19,7 +19,7 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (
     training_frame,
     training_render,
 )
-from pytest_metamorphic.lidar.systems.perception.cnnseg.features import SHIPPED_GRID
+from pytest_metamorphic.lidar.systems.perception.cnnseg.features import SHIPPED_GRID, point_cells
 from pytest_metamorphic.lidar.systems.perception.cnnseg.targets import cell_targets
 
 
@@ -67,12 +67,39 @@ def test_targets_leave_out_obstacles_with_too_few_returns(street: Frame) -> None
     assert all_targets.objectness.sum() > 0 and strict.objectness.sum() == 0
 
 
+def test_heading_targets_are_the_doubled_yaw_of_cars_and_cyclists(street: Frame) -> None:
+    targets = cell_targets(street, SHIPPED_GRID)
+    instance = np.asarray(street.cloud.fields["instance"])
+    flat, inside = point_cells(street.cloud.points, SHIPPED_GRID)
+    checked = set()
+    for index, box in enumerate(street.boxes):
+        cells = np.unique(flat[inside & (instance == index)])
+        # The cells this obstacle owns (it may lose some to a neighbour): they point at it.
+        cx, cy = (c.ravel()[cells] for c in SHIPPED_GRID.cell_centers())
+        offset = targets.offset.reshape(2, -1)[:, cells]
+        pointing = np.hypot(cx + offset[0] - box.center[0], cy + offset[1] - box.center[1])
+        owned = cells[pointing < 1e-3]
+        if box.label not in ("car", "pedestrian", "cyclist") or len(owned) == 0:
+            continue
+        heading = targets.heading.reshape(2, -1)[:, owned]
+        if box.label == "pedestrian":
+            assert np.all(heading == 0)
+        else:
+            # A box is the same turned by 180 degrees: (cos 2θ, sin 2θ) says so.
+            expected = [np.cos(2 * box.yaw), np.sin(2 * box.yaw)]
+            assert heading == pytest.approx(np.repeat([expected], len(owned), 0).T, abs=1e-6)
+        checked.add(box.label)
+    assert {"car", "pedestrian"} <= checked
+    assert np.all(targets.heading[:, targets.objectness == 0] == 0)
+
+
 def test_an_example_is_a_window_of_the_grid_with_targets_per_view() -> None:
     seed = 7
     data = example(seed, SHIPPED_GRID)
     for view in ("full", "roi"):
         assert data[view].shape == (6, CROP, CROP)
         assert data[f"{view}_offset"].shape == (2, CROP, CROP)
+        assert data[f"{view}_heading"].shape == (2, CROP, CROP)
         # Object cells hold returns of the view (ROI-only features have no object
         # outside the ROI to find: its targets must not ask for one).
         nonempty = data[view][5] > 0

@@ -34,9 +34,11 @@ class FakeNetwork:
         region: tuple[float, float, float, float],
         classes: tuple[float, float, float] = (0.7, 0.2, 0.1),
         top: float = 0.0,
+        yaw: float | None = None,
     ):
         self.grid = GRID
         self.centre, self.region, self.classes, self.top = centre, region, classes, top
+        self.yaw = yaw  # the heading map's yaw everywhere; None: a model without one
         self.batches: list[int] = []
 
     def predict(self, features: np.ndarray) -> list[NetworkOutput]:
@@ -52,7 +54,11 @@ class FakeNetwork:
             class_prob = np.broadcast_to(np.array(self.classes, np.float32)[:, None, None],
                                          (3, n, n)).copy()  # fmt: skip
             height = np.full((n, n), self.top, dtype=np.float32)
-            outputs.append(NetworkOutput(objectness, offset, class_prob, height))
+            heading = None
+            if self.yaw is not None:
+                doubled = np.array([math.cos(2 * self.yaw), math.sin(2 * self.yaw)], np.float32)
+                heading = np.broadcast_to(doubled[:, None, None], (2, n, n)).copy()
+            outputs.append(NetworkOutput(objectness, offset, class_prob, height, heading))
         return outputs
 
 
@@ -107,6 +113,39 @@ def test_a_car_seen_from_the_side_lays_its_length_along_the_side() -> None:
     assert box.size[:2] == pytest.approx((3.9, 1.6), abs=0.01)
     assert abs(math.cos(box.yaw)) == pytest.approx(1.0, abs=1e-6)
     assert box.center[:2] == pytest.approx((15.0, 4.8), abs=0.01)
+
+
+@pytest.mark.parametrize("yaw", [0.3, -1.2, math.pi / 2])
+def test_a_cars_heading_comes_from_the_network_where_it_predicts_one(yaw: float) -> None:
+    # The rear face alone says nothing of which way the car points; the heading map does.
+    # The length (3.9 m) lies along it, whatever the outline's own axes.
+    network = FakeNetwork(centre=(17.1, 0.0), region=(14, 19, -2, 2), yaw=yaw)
+    (box,) = CNNSegmentation(network=network)(PointCloud(_street(_rear_face(15.0, 0.0))))
+    assert box.label == "car"
+    assert math.remainder(box.yaw - yaw, math.pi) == pytest.approx(0.0, abs=1e-5)
+    assert box.size[0] >= 3.9 - 0.01 and box.size[1] < box.size[0]
+    # The visible face stays inside the box.
+    corners = box.corners_bev()
+    face = _rear_face(15.0, 0.0)[:, :2]
+    axes = np.array(
+        [[math.cos(box.yaw), math.sin(box.yaw)], [-math.sin(box.yaw), math.cos(box.yaw)]]
+    )
+    local, bounds = (face - box.center[:2]) @ axes.T, (corners - box.center[:2]) @ axes.T
+    assert np.all(local >= bounds.min(axis=0) - 1e-4) and np.all(local <= bounds.max(axis=0) + 1e-4)
+
+
+def test_a_pedestrians_box_keeps_its_outlines_heading() -> None:
+    # The network's heading is trained on cars and cyclists only.
+    face = _rear_face(15.0, 0.0, width=0.6)
+    expected = CNNSegmentation(
+        network=FakeNetwork(centre=(15.1, 0.0), region=(14, 19, -2, 2), classes=(0.1, 0.8, 0.1))
+    )(PointCloud(_street(face)))
+    with_heading = CNNSegmentation(
+        network=FakeNetwork(
+            centre=(15.1, 0.0), region=(14, 19, -2, 2), classes=(0.1, 0.8, 0.1), yaw=0.7
+        )
+    )(PointCloud(_street(face)))
+    assert with_heading == expected and expected[0].label == "pedestrian"
 
 
 def test_class_height_and_size_rules() -> None:

@@ -8,6 +8,7 @@ import functools
 import json
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -187,6 +188,25 @@ def test_a_file_that_is_not_the_model_is_named(tmp_path: Path) -> None:
     os.mkfifo(fifo)  # never opened: a FIFO is no model file, and nothing blocks on it
     with pytest.raises(InvalidArgument, match=r"pipe\.onnx' is not a regular file"):
         OnnxNetwork(fifo)
+
+
+def test_a_model_without_the_maps_the_detector_reads_is_named() -> None:
+    network = OnnxNetwork()
+    names = ("objectness", "offset", "logits")
+    network._session = SimpleNamespace(get_outputs=lambda: [SimpleNamespace(name=n) for n in names])
+    with pytest.raises(
+        InvalidArgument, match=r"cnnseg\.onnx' has no output\(s\) \['class_prob', 'height'\]"
+    ):
+        _ = network.outputs
+
+
+def test_the_heading_map_is_read_only_where_the_model_has_one() -> None:
+    # The model shipped before 2026-11-29 has no heading output: its boxes take their
+    # headings from their outlines, as they always did.
+    assert OnnxNetwork().outputs[:4] == ("objectness", "offset", "class_prob", "height")
+    network = OnnxNetwork()
+    output = network.predict(np.zeros((1, 6, network.grid.size, network.grid.size), np.float32))[0]
+    assert (output.heading is None) == ("heading" not in network.outputs)
 
 
 # -- model files from outside: the grid metadata is bounded and checked -----------------------

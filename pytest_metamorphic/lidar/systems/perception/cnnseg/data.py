@@ -267,6 +267,7 @@ def example(seed: int, grid: GridSpec) -> dict[str, np.ndarray]:
         out[f"{view}_offset"] = targets.offset[window].astype(np.float16)
         out[f"{view}_label"] = targets.label[window[1:]].astype(np.int8)
         out[f"{view}_height"] = targets.height[window[1:]].astype(np.float16)
+        out[f"{view}_heading"] = targets.heading[window].astype(np.float16)
     return out
 
 

@@ -326,30 +326,17 @@ class CNNSegmentation:
         cell_object = renumber[labels[cells]]
         cells, cell_object = cells[cell_object >= 0], cell_object[cell_object >= 0]
         weight = np.bincount(cell_object, minlength=len(kept)).astype(np.float64)
-        class_mean = (
-            np.stack(
-                [
-                    np.bincount(cell_object, weights=prob.ravel()[cells], minlength=len(kept))
-                    for prob in output.class_prob
-                ]
-            )
-            / weight
-        )
-        score = (
-            np.bincount(cell_object, weights=output.objectness.ravel()[cells], minlength=len(kept))
-            / weight
-        )
+
+        def mean(cell_map: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
+            """Each kept object's mean of ``cell_map`` over its cells."""
+            summed = np.bincount(cell_object, weights=cell_map.ravel()[cells], minlength=len(kept))
+            return summed / weight
+
+        class_mean = np.stack([mean(prob) for prob in output.class_prob])
+        score = mean(output.objectness)
         cx, cy = predicted_centers(output.offset, grid)
-        centre = (
-            np.stack(
-                [
-                    np.bincount(cell_object, weights=cx.ravel()[cells], minlength=len(kept)),
-                    np.bincount(cell_object, weights=cy.ravel()[cells], minlength=len(kept)),
-                ],
-                axis=1,
-            )
-            / weight[:, None]
-        )
+        centre = np.stack([mean(cx), mean(cy)], axis=1)
+        heading = None if output.heading is None else [mean(h) for h in output.heading]
         low = np.full(len(kept), np.inf)
         high = np.full(len(kept), -np.inf)
         np.minimum.at(low, ids, members[:, 2])
@@ -358,22 +345,30 @@ class CNNSegmentation:
         for k, shape in enumerate(shapes):
             label: Label = CLASSES[int(np.argmax(class_mean[:, k]))]  # type: ignore[assignment]
             points_k = members[ids == k, :2].astype(np.float64)
+            yaw, predicted = shape.yaw, False
+            if heading is not None and label in _ORIENTED:
+                # Apollo's heading_pt: the mean of (cos 2θ, sin 2θ) over the object's
+                # cells. A far car's outline is a few returns of one side, whose
+                # smallest enclosing box can point anywhere; the network sees the street.
+                yaw, predicted = 0.5 * math.atan2(heading[1][k], heading[0][k]), True
             boxes.append(
                 _completed_box(
                     points_k,
-                    shape.yaw,
+                    yaw,
                     centre[k],
                     label,
                     float(low[k]),
                     float(high[k]),
                     float(score[k]),
                     shape.points,
+                    along_yaw=predicted,
                 )
             )
         return labels, sorted(boxes, key=box_order)
 
 
 _SIDE_SLACK = 0.2  # metres an outline may exceed a class's largest side (noise, mirrors)
+_ORIENTED = ("car", "cyclist")  # the classes the network's heading is trained on
 
 
 def _completed_box(
@@ -385,6 +380,8 @@ def _completed_box(
     top: float,
     score: float,
     points: int | None,
+    *,
+    along_yaw: bool = False,
 ) -> Box:
     """MinBox's oriented outline of ``xy``, completed about the predicted ``centre``.
 
@@ -392,14 +389,20 @@ def _completed_box(
     cannot see: a car seen from behind is a 1.8 x 0.3 m outline. Cars are completed to
     at least the class's mean size (:func:`_car_bounds`); pedestrians and cyclists, whose
     sizes vary as much as their outlines, symmetrically about the predicted centre
-    (:func:`_mirrored_bounds`). The visible outline is always kept.
+    (:func:`_mirrored_bounds`). The visible outline is always kept. ``along_yaw``: the
+    yaw is the network's heading, so a car's length lies along it (an outline's own
+    axes say nothing of which is the length).
     """
     axes = np.array([[math.cos(yaw), math.sin(yaw)], [-math.sin(yaw), math.cos(yaw)]])
     projected = xy @ axes.T  # (k, 2): along the outline's heading, across it
     middle = axes @ centre
     lo, hi = projected.min(axis=0), projected.max(axis=0)
-    complete = _car_bounds if label == "car" else _mirrored_bounds
-    (a0, a1), (b0, b1) = complete(lo, hi, middle, label)
+    if label == "car":
+        (a0, a1), (b0, b1) = _car_bounds(
+            lo, hi, middle, label, turns=(False,) if along_yaw else (False, True)
+        )
+    else:
+        (a0, a1), (b0, b1) = _mirrored_bounds(lo, hi, middle, label)
     along, across = (a0 + a1) / 2, (b0 + b1) / 2
     length, width = max(a1 - a0, MIN_EXTENT), max(b1 - b0, MIN_EXTENT)
     x, y = axes.T @ np.array([along, across])
@@ -437,7 +440,8 @@ def _mirrored_bounds(lo: NDArray[np.float64], hi: NDArray[np.float64],
 
 
 def _car_bounds(lo: NDArray[np.float64], hi: NDArray[np.float64],
-                middle: NDArray[np.float64], label: Label) -> Bounds:  # fmt: skip
+                middle: NDArray[np.float64], label: Label,
+                turns: Sequence[bool] = (False, True)) -> Bounds:  # fmt: skip
     """Each side at least the class's mean size (at most its largest, unless the outline
     is longer), centred on the prediction as far as the outline allows. Of the two ways
     to lay the length along the outline's axes, the one that needs the smaller shift away
@@ -446,7 +450,7 @@ def _car_bounds(lo: NDArray[np.float64], hi: NDArray[np.float64],
     prior = SIZE_PRIORS[label]
     seen_sides = hi - lo
     best: tuple[float, Bounds] | None = None
-    for turn in (False, True):
+    for turn in turns:
         wanted = (prior.mean[1], prior.mean[0]) if turn else (prior.mean[0], prior.mean[1])
         largest = (prior.high[1], prior.high[0]) if turn else (prior.high[0], prior.high[1])
         if best is not None and np.any(seen_sides > np.array(largest) + _SIDE_SLACK):

@@ -3,9 +3,12 @@
 The ONNX file takes ``features`` (batch, 6, size, size) float32 and returns, per cell:
 ``objectness`` (batch, 1, size, size, sigmoid applied), ``offset`` (batch, 2, size, size:
 predicted object centre minus cell centre, x and y in metres), ``class_prob`` (batch, 3,
-size, size: softmax over car, pedestrian, cyclist) and ``height`` (batch, 1, size, size:
-the object's top, z in metres). The grid it was trained on is stored in the file's
-metadata (``grid``, JSON), so a model and its feature grid cannot be mixed up.
+size, size: softmax over car, pedestrian, cyclist), ``height`` (batch, 1, size, size:
+the object's top, z in metres) and, in models trained since 2026-11-29, ``heading``
+(batch, 2, size, size: cos and sin of twice the object's yaw, Apollo's ``heading_pt``;
+a model without it gets its boxes' headings from their outlines alone). The grid it was
+trained on is stored in the file's metadata (``grid``, JSON), so a model and its feature
+grid cannot be mixed up.
 """
 
 from __future__ import annotations
@@ -22,11 +25,12 @@ from numpy.typing import NDArray
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import CHANNELS, GridSpec
 
-__all__ = ["CLASSES", "DEFAULT_MODEL", "DEVICES", "NetworkOutput", "OnnxNetwork"]
+__all__ = ["CLASSES", "DEFAULT_MODEL", "DEVICES", "OUTPUTS", "NetworkOutput", "OnnxNetwork"]
 
 CLASSES = ("car", "pedestrian", "cyclist")
 DEFAULT_MODEL = Path(__file__).resolve().parent / "cnnseg.onnx"
-_OUTPUTS = ("objectness", "offset", "class_prob", "height")
+OUTPUTS = ("objectness", "offset", "class_prob", "height", "heading")  # the last optional
+_REQUIRED = OUTPUTS[:4]
 DEVICES = ("cpu", "cuda", "auto")
 
 
@@ -38,6 +42,7 @@ class NetworkOutput:
     offset: NDArray[np.float32]  # (2, size, size)
     class_prob: NDArray[np.float32]  # (3, size, size)
     height: NDArray[np.float32]  # (size, size)
+    heading: NDArray[np.float32] | None = None  # (2, size, size), None: not predicted
 
 
 class OnnxNetwork:
@@ -84,6 +89,7 @@ class OnnxNetwork:
         self.device = device
         self._session: Any = None
         self._grid: GridSpec | None = None
+        self._outputs: tuple[str, ...] | None = None
 
     def __repr__(self) -> str:
         return f"OnnxNetwork({str(self.path)!r}, threads={self.threads}, device={self.device!r})"
@@ -104,6 +110,7 @@ class OnnxNetwork:
         self.device = state.get("device", "cpu")
         self._session = None
         self._grid = None
+        self._outputs = None
 
     @property
     def session(self) -> Any:
@@ -149,14 +156,36 @@ class OnnxNetwork:
                 f"features must have shape (batch, {', '.join(map(str, expected))}), "
                 f"got {features.shape}"
             )
+        names = self.outputs
         values = self.session.run(
-            list(_OUTPUTS), {"features": np.ascontiguousarray(features, dtype=np.float32)}
+            list(names), {"features": np.ascontiguousarray(features, dtype=np.float32)}
         )
-        objectness, offset, class_prob, height = values
+        objectness, offset, class_prob, height = values[:4]
+        heading = values[4] if len(names) > 4 else None
         return [
-            NetworkOutput(objectness[i, 0], offset[i], class_prob[i], height[i, 0])
+            NetworkOutput(
+                objectness[i, 0],
+                offset[i],
+                class_prob[i],
+                height[i, 0],
+                None if heading is None else heading[i],
+            )
             for i in range(len(features))
         ]
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The maps this model gives (:data:`OUTPUTS`, ``heading`` only where trained)."""
+        if self._outputs is None:
+            have = {item.name for item in self.session.get_outputs()}
+            missing = [name for name in _REQUIRED if name not in have]
+            if missing:
+                raise InvalidArgument(
+                    f"model file {str(self.path)!r} has no output(s) {missing} (it has "
+                    f"{sorted(have)}); a CNN segmentation model gives {list(_REQUIRED)}"
+                )
+            self._outputs = tuple(name for name in OUTPUTS if name in have)
+        return self._outputs
 
 
 _MAX_GRID_METADATA = 4096  # characters of the "grid" entry: a few numbers need ~100

@@ -4,8 +4,8 @@ Rendered frames (:func:`pytest_metamorphic.lidar.synthetic.render`) label every 
 the obstacle it hit (the ``instance`` field: the index into ``frame.boxes``; ground and
 background objects are negative). A cell is an object cell when it holds a return of an
 obstacle; when several obstacles share a cell, the one with most returns there wins.
-Each object cell is trained on its obstacle's centre offset, class and top height, like
-Apollo's ``instance_pt``, ``class_score`` and ``height_pt`` blobs.
+Each object cell is trained on its obstacle's centre offset, class, top height and heading,
+like Apollo's ``instance_pt``, ``class_score``, ``height_pt`` and ``heading_pt`` blobs.
 """
 
 from __future__ import annotations
@@ -37,12 +37,17 @@ class Targets:
         Index into :data:`~.network.CLASSES`; -1 outside object cells.
     height : (size, size) float32
         Obstacle top (z, metres); 0 outside object cells.
+    heading : (2, size, size) float32
+        cos and sin of twice the obstacle's yaw (a box is the same turned by 180 degrees,
+        so the doubled angle is what is defined) for cars and cyclists; 0 elsewhere,
+        pedestrians included (their boxes' yaw says little).
     """
 
     objectness: NDArray[np.float32]
     offset: NDArray[np.float32]
     label: NDArray[np.int64]
     height: NDArray[np.float32]
+    heading: NDArray[np.float32]
 
 
 def instance_field(frame: Frame, use: str) -> NDArray[np.integer]:
@@ -77,6 +82,7 @@ def cell_targets(frame: Frame, grid: GridSpec | None = None, *, min_points: int 
     offset = np.zeros((2, n * n), dtype=np.float32)
     label = np.full(n * n, -1, dtype=np.int64)
     height = np.zeros(n * n, dtype=np.float32)
+    heading = np.zeros((2, n * n), dtype=np.float32)
     if hit.any():
         cells, owners = flat[hit], instance[hit]
         # Most returns per (cell, obstacle) wins the cell.
@@ -99,9 +105,14 @@ def cell_targets(frame: Frame, grid: GridSpec | None = None, *, min_points: int 
         offset[1, cell] = centers[owner, 1] - cy.ravel()[cell]
         label[cell] = classes[owner]
         height[cell] = tops[owner]
+        oriented = classes[owner] != CLASSES.index("pedestrian")
+        doubled = 2.0 * np.array([b.yaw for b in boxes], dtype=np.float64)[owner[oriented]]
+        heading[0, cell[oriented]] = np.cos(doubled)
+        heading[1, cell[oriented]] = np.sin(doubled)
     return Targets(
         objectness.reshape(n, n),
         offset.reshape(2, n, n),
         label.reshape(n, n),
         height.reshape(n, n),
+        heading.reshape(2, n, n),
     )

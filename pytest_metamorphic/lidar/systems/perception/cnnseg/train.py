@@ -38,11 +38,12 @@ from pytest_metamorphic.lidar.systems.perception.cnnseg.features import (
     SHIPPED_GRID,
     GridSpec,
 )
-from pytest_metamorphic.lidar.systems.perception.cnnseg.network import CLASSES
+from pytest_metamorphic.lidar.systems.perception.cnnseg.network import CLASSES, OUTPUTS
 
 
 def build_network(width: int = 16) -> Any:
-    """The U-Net: three stride-2 stages down, three up with skips; 7 output channels."""
+    """The U-Net: three stride-2 stages down, three up with skips; 9 output channels
+    (objectness, offset x and y, three class scores, top height, heading cos and sin)."""
     import torch
     from torch import nn
 
@@ -63,7 +64,7 @@ def build_network(width: int = 16) -> Any:
             self.d3 = conv(8 * w, 4 * w)
             self.d2 = conv(6 * w, 2 * w)
             self.d1 = conv(3 * w, w)
-            self.head = nn.Conv2d(w, 1 + 2 + len(CLASSES) + 1, 1)
+            self.head = nn.Conv2d(w, 1 + 2 + len(CLASSES) + 1 + 2, 1)
 
         def forward(self, x: Any) -> Any:
             a = self.e1(x)
@@ -99,13 +100,15 @@ class Exported:
                     raw[:, 1:3],
                     torch.softmax(raw[:, 3 : 3 + k], dim=1),
                     raw[:, 3 + k : 4 + k],
+                    raw[:, 4 + k : 6 + k],
                 )
 
         return WithActivations()
 
 
 def _augment(batch: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
-    """A random quarter turn and mirror of the whole batch (features, targets, offsets)."""
+    """A random quarter turn and mirror of the whole batch (features, targets, offsets,
+    headings: a mirror negates the doubled angle, a quarter turn adds 180 degrees to it)."""
     import torch
 
     turns = int(rng.integers(4))
@@ -121,6 +124,12 @@ def _augment(batch: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
     for _ in range(turns):  # (x, y) -> (-y, x)
         dx, dy = -dy, dx
     out["offset"] = torch.stack([dx, dy], dim=1)
+    cos, sin = out["heading"][:, 0], out["heading"][:, 1]
+    if mirror:
+        sin = -sin
+    if turns % 2:
+        cos, sin = -cos, -sin
+    out["heading"] = torch.stack([cos, sin], dim=1)
     return out
 
 
@@ -145,12 +154,17 @@ def _loss(raw: Any, batch: dict[str, Any]) -> tuple[Any, dict[str, float]]:
     height_loss = (
         F.smooth_l1_loss(raw[:, 3 + k], batch["height"], reduction="none") * positive
     ).sum() / count
-    total = 4.0 * object_loss + offset_loss + class_loss + height_loss
+    oriented = (batch["heading"].abs().sum(dim=1) > 0.5).unsqueeze(1)  # cars, cyclists
+    heading_loss = (
+        F.smooth_l1_loss(raw[:, 4 + k : 6 + k], batch["heading"], reduction="none") * oriented
+    ).sum() / oriented.sum().clamp(min=1)
+    total = 4.0 * object_loss + offset_loss + class_loss + height_loss + heading_loss
     parts = {
         "objectness": object_loss.item(),
         "offset": offset_loss.item(),
         "class": class_loss.item(),
         "height": height_loss.item(),
+        "heading": heading_loss.item(),
     }
     return total, parts
 
@@ -206,6 +220,7 @@ def train(
                 "offset": _pick(data, "full_offset", "roi_offset", scene, view, np.float32),
                 "label": _pick(data, "full_label", "roi_label", scene, view, np.int64),
                 "height": _pick(data, "full_height", "roi_height", scene, view, np.float32),
+                "heading": _pick(data, "full_heading", "roi_heading", scene, view, np.float32),
             }
             batch = {key: value.to(device) for key, value in _augment(batch, rng).items()}
             raw = network(batch["features"])
@@ -238,11 +253,8 @@ def export(network: Any, path: Path, grid: GridSpec, metadata: dict[str, Any]) -
         (dummy,),
         str(path),
         input_names=["features"],
-        output_names=["objectness", "offset", "class_prob", "height"],
-        dynamic_axes={
-            name: {0: "batch"}
-            for name in ("features", "objectness", "offset", "class_prob", "height")
-        },
+        output_names=list(OUTPUTS),
+        dynamic_axes={name: {0: "batch"} for name in ("features", *OUTPUTS)},
         opset_version=17,
         dynamo=False,
     )
