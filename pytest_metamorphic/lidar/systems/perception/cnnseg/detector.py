@@ -9,14 +9,17 @@ section 9, ``modules/perception/lidar/lib/segmentation/cnnseg``):
 2. **Features** (:mod:`.features`) from *every* point of the sweep when ``full_cloud`` is
    True (Apollo 2.x/3.0's ``use_full_cloud: true``: the network sees what lies off the
    road), or from the ROI's points alone when False.
-3. **Network** (:mod:`.network`): per-cell objectness, centre offset, class, top height.
+3. **Network** (:mod:`.network`): per-cell objectness, centre offset, class, top height
+   and, where the model has it, heading.
 4. **Cluster2D** (:mod:`.cluster2d`): object cells grouped by their predicted centres.
 5. **Objects**: each group's valid points no higher than its predicted top plus
    ``height_thresh``; groups with fewer than ``min_points``, reaching within
    ``edge_margin`` of the grid's border (cut by it), or with no point within
    ``max_lift`` of the ground under it (floating: a wall's top, foliage; not Apollo's),
    are dropped. The box is the
-   project's MinBox of those points (the visible outline, oriented), completed to the
+   visible outline of those points, oriented by the network's heading (cars and
+   cyclists, Apollo's ``heading_pt``: the mean over the group's cells) or else by the
+   project's MinBox, completed to the
    far side the sensor cannot see so that it is symmetric about the network's predicted
    centre (a car seen from behind is a 1.8 x 0.3 m outline; its predicted centre, two
    metres behind, says where the rest is), capped at the class's largest size. Class:
@@ -383,7 +386,7 @@ def _completed_box(
     *,
     along_yaw: bool = False,
 ) -> Box:
-    """MinBox's oriented outline of ``xy``, completed about the predicted ``centre``.
+    """The outline of ``xy`` along ``yaw``, completed about the predicted ``centre``.
 
     A sensor sees one or two sides of an object, so the outline is short of it where it
     cannot see: a car seen from behind is a 1.8 x 0.3 m outline. Cars are completed to
