@@ -39,8 +39,10 @@ def _moved(frame: Frame, turns: int, mirror: bool) -> Frame:
         return x, y, yaw
 
     points = frame.cloud.points.copy()
-    for row in points:
-        row[0], row[1], _ = move(float(row[0]), float(row[1]), 0.0)
+    if mirror:
+        points[:, 1] = -points[:, 1]
+    for _ in range(turns):  # (x, y) -> (-y, x)
+        points[:, :2] = np.column_stack([-points[:, 1], points[:, 0]])
     boxes = []
     for box in frame.boxes:
         x, y, yaw = move(box.center[0], box.center[1], box.yaw)
