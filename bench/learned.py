@@ -31,7 +31,11 @@ Ends with ``RESULT kitti_car_recall=... kitti_false_cars_per_sweep=... mr1_full_
 mr1_roi_1000=...`` (recall and false cars within the grid's 70 m; the MR1 keys are the
 paper's check, |O| > |O'|, on the real sweeps).
 
-    python bench/learned.py [--parts quality,mr1,batches,validation] [--workers N]
+Two more parts choose nothing by themselves: ``validation`` (car F1 within 70 m on the
+40 validation streets ``held_out_frame(1000 + i)``, what retrained models are held to)
+and ``scores`` (the same streets with objects under a score threshold dropped).
+
+    python bench/learned.py [--parts quality,mr1,batches,validation,scores] [--workers N]
                             [--model PATH] [--max-lift METRES]
 """
 
@@ -96,18 +100,49 @@ def _detector(full_cloud: bool, model: Any, **options: Any) -> CNNSegmentation:
     return CNNSegmentation(full_cloud, network=network, params=params, **options)
 
 
+SCORE_THRESHOLDS = (0.5, 0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95)
+
+
+def _f1(score: Any) -> float:
+    precision, recall = score.precision or 0.0, score.recall or 0.0
+    return 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+
+
 def validation(model: Any, streets: int = 40) -> dict[str, float]:
     """Car F1 within 70 m on the validation streets ``held_out_frame(1000 + i)``: what the
     model's and the detector's choices were made on (never a real sweep)."""
     print(f"== validation: {streets} streets held_out_frame(1000 + i), cars within 70 m ==")
     frames = (held_out_frame(1000 + i) for i in range(streets))
     car = detection_quality(_detector(True, model), frames, max_range=GRID_RANGE)["car"]
-    precision, recall = car.precision or 0.0, car.recall or 0.0
-    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+    f1 = _f1(car)
     print(f"found {car.true_positives}, false {car.false_positives}, missed "
-          f"{car.false_negatives}: recall {recall:.3f}, precision {precision:.3f}, "
-          f"F1 {f1:.4f}")  # fmt: skip
+          f"{car.false_negatives}: recall {car.recall or 0.0:.3f}, precision "
+          f"{car.precision or 0.0:.3f}, F1 {f1:.4f}")  # fmt: skip
     return {"validation_car_f1": f1}
+
+
+def scores(model: Any, streets: int = 40) -> dict[str, float]:
+    """Validation F1 per class when objects whose score (mean objectness over their
+    cells, 0.5 or more by construction) is under a threshold are dropped: Apollo's
+    ``confidence_thresh``, asked of the validation streets only."""
+    print(f"== object score thresholds: {streets} validation streets, within 70 m ==")
+    frames = [held_out_frame(1000 + i) for i in range(streets)]
+    detector = _detector(True, model)
+    found = {frame.source: detector(frame) for frame in frames}
+    header = "".join(f"{c + ': found / false / missed, F1':<40}" for c in CLASSES)
+    print(f"{'score >=':<9}{header}")
+    best = (0.0, -0.5)
+    for threshold in SCORE_THRESHOLDS:
+
+        def above(frame: Frame, threshold: float = threshold) -> list[Any]:
+            return [box for box in found[frame.source] if box.score >= threshold]
+
+        score = detection_quality(above, frames, max_range=GRID_RANGE)
+        cells = [f"{score[c].true_positives} / {score[c].false_positives} / "
+                 f"{score[c].false_negatives}, {_f1(score[c]):.4f}" for c in CLASSES]  # fmt: skip
+        print((f"{threshold:<9.2f}" + "".join(f"{cell:<40}" for cell in cells)).rstrip())
+        best = max(best, (round(_f1(score["car"]), 4), -threshold))
+    return {"score_best_threshold": -best[1], "score_best_car_f1": best[0]}
 
 
 def labelled_sweeps() -> list[Frame]:
@@ -332,7 +367,7 @@ def main() -> None:
     parser.add_argument(
         "--parts",
         default="quality,mr1,batches",
-        help="which parts to run (comma-separated; also: validation)",
+        help="which parts to run (comma-separated; also: validation, scores)",
     )
     args = parser.parse_args()
     parts = set(args.parts.split(","))
@@ -340,6 +375,8 @@ def main() -> None:
     keys: dict[str, float] = {}
     if "validation" in parts:
         keys.update(validation(model))
+    if "scores" in parts:
+        keys.update(scores(model))
     if "quality" in parts:
         keys.update(quality(args.held_out, model))
     if "batches" in parts:
