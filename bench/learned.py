@@ -135,13 +135,15 @@ def scores(model: Any, streets: int = 40) -> dict[str, float]:
     for threshold in SCORE_THRESHOLDS:
 
         def above(frame: Frame, threshold: float = threshold) -> list[Any]:
-            return [box for box in found[frame.source] if box.score >= threshold]
+            return [b for b in found[frame.source] if b.score is not None and b.score >= threshold]
 
-        score = detection_quality(above, frames, max_range=GRID_RANGE)
-        cells = [f"{score[c].true_positives} / {score[c].false_positives} / "
-                 f"{score[c].false_negatives}, {_f1(score[c]):.4f}" for c in CLASSES]  # fmt: skip
+        result = detection_quality(above, frames, max_range=GRID_RANGE)
+        per_class = {str(label): score for label, score in result.scores.items()}
+        cells = [f"{per_class[c].true_positives} / {per_class[c].false_positives} / "
+                 f"{per_class[c].false_negatives}, {_f1(per_class[c]):.4f}"
+                 for c in CLASSES]  # fmt: skip
         print((f"{threshold:<9.2f}" + "".join(f"{cell:<40}" for cell in cells)).rstrip())
-        best = max(best, (round(_f1(score["car"]), 4), -threshold))
+        best = max(best, (round(_f1(per_class["car"]), 4), -threshold))
     return {"score_best_threshold": -best[1], "score_best_car_f1": best[0]}
 
 
