@@ -64,6 +64,7 @@ class StreetOptions:
     road_users: tuple[int, int] = (0, 10)
     parked: float = 0.6
     reach: float = 75.0
+    loose_walls: float = 0.0
 
     def __post_init__(self) -> None:
         low, high = self.road_width
@@ -232,6 +233,22 @@ def _frontage(street: _Street, origin: NDArray[np.float64], heading: float, side
                        side * (setback + float(rng.uniform(1, 10))), 3.0)  # fmt: skip
 
 
+def _loose_walls(street: _Street, origin: NDArray[np.float64], heading: float, side: float,
+                 edge: float, mean: float) -> None:
+    """Free-standing wall pieces a car's length or so (garden walls, hoardings)."""
+    if mean <= 0:
+        return
+    rng = street.rng
+    for _ in range(int(rng.poisson(mean))):
+        u = float(rng.uniform(-street.reach, street.reach))
+        v = side * (edge + float(rng.uniform(0.5, 15.0)))
+        x, y = _to_sensor(u, v, origin, heading)
+        yaw = heading if rng.random() < 0.6 else float(rng.uniform(0, math.pi))
+        size = (float(rng.uniform(2.0, 7.0)), float(rng.uniform(0.05, 0.4)),
+                float(rng.uniform(0.4, 2.2)))
+        street.clutter("building", x, y, size, yaw)
+
+
 def _hedge(street: _Street, origin: NDArray[np.float64], heading: float, u: float, length: float,
            v: float, depth: float) -> None:  # fmt: skip
     """Foliage: clumps of small cuboids of varied height over a strip ``length`` long."""
@@ -365,6 +382,8 @@ def street_scene(
                 inset = float(rng.uniform(0.4, max(pavement - 0.3, 0.5)))
                 _pavement_furniture(street, road_origin, road_heading, side, half + inset)
             _frontage(street, road_origin, road_heading, side, half + pavement)
+            _loose_walls(street, road_origin, road_heading, side, half + pavement,
+                         options.loose_walls)
     return Scene(
         sensor_height=round(height, 4),
         roi=street.roads,

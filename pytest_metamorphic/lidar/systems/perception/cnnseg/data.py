@@ -45,7 +45,7 @@ from pytest_metamorphic.lidar.model.sensors import (
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.description import BACKGROUND_INSTANCE, GROUND_INSTANCE
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
-from pytest_metamorphic.lidar.synthetic.streetscape import street_scene
+from pytest_metamorphic.lidar.synthetic.streetscape import StreetOptions, street_scene
 from pytest_metamorphic.lidar.systems.perception.cnnseg.features import GridSpec, bev_features
 from pytest_metamorphic.lidar.systems.perception.cnnseg.targets import cell_targets, instance_field
 
@@ -82,9 +82,9 @@ CAMERA_LOWEST = -14.0  # degrees below the camera's horizon: KITTI's crops, meas
 CAMERA_BELOW = 0.08  # metres the camera sits below the LiDAR (KITTI's calibration)
 
 
-def _scene_and_sensor(rng: np.random.Generator, name: str) -> tuple[Any, Any]:
+def _scene_and_sensor(rng: np.random.Generator, name: str, loose: float = 0.0) -> tuple[Any, Any]:
     if rng.random() < STREET_SHARE:
-        scene = street_scene(rng, name=name)
+        scene = street_scene(rng, name=name, options=StreetOptions(loose_walls=loose))
     else:
         scene = random_scene(rng, name=name, **SCENE_OPTIONS)
     sensor = HDL64E
@@ -216,7 +216,8 @@ def training_render(seed: int) -> tuple[Frame, Frame]:
     """Training scene ``seed`` as the renderer gives it and as training sees it (after
     :func:`degrade`): ``bench/learned_gap.py`` measures both against real sweeps."""
     rng = np.random.default_rng(seed)
-    scene, sensor = _scene_and_sensor(rng, f"train-{seed}")
+    loose = 3.0 if seed < HELD_OUT_SEED_OFFSET else 0.0  # EXPERIMENT s31
+    scene, sensor = _scene_and_sensor(rng, f"train-{seed}", loose)
     frame = render(scene, beams=sensor, seed=int(rng.integers(2**31)))
     return frame, degrade(frame, rng)
 
