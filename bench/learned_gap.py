@@ -61,6 +61,7 @@ from pytest_metamorphic.lidar.systems.perception.clustering import cluster_point
 from pytest_metamorphic.lidar.systems.perception.cnnseg.data import (  # noqa: E402
     CAMERA_HALF_WIDTH,
     HELD_OUT_SEED_OFFSET,
+    HELD_OUT_STREETS,
     training_render,
 )
 from pytest_metamorphic.lidar.systems.perception.ground import ground_heights  # noqa: E402
@@ -239,7 +240,7 @@ def main() -> None:
         measure(Frame(read_bin(path), source=str(path)), gap, detector)
     rendered, degraded = Gap(), Gap()
     for index in range(args.scenes):
-        raw, seen = training_render(HELD_OUT_SEED_OFFSET + index)
+        raw, seen = training_render(HELD_OUT_SEED_OFFSET + index, streets=HELD_OUT_STREETS)
         if raw.sensor is not HDL64E:
             continue
         measure(raw, rendered, None)

@@ -14,6 +14,8 @@ already knows (cuboids, poles, trees), laid out along a straight road or a cross
 * frontages: façades of buildings with gaps between them, fences and low walls (thin
   cuboids), hedges (clumps of small cuboids of varied height, as foliage returns come
   from several depths), trees and poles along the pavement, and sometimes nothing;
+* loose wall pieces (``StreetOptions.loose_walls``, none by default): free-standing
+  walls a car's length or so beyond the pavement;
 * road users: cars, vans, cyclists and pedestrians on the road, pedestrians on the
   pavements (standing on them).
 
@@ -57,6 +59,11 @@ class StreetOptions:
         Chance that a kerb has a parked row.
     reach : float
         Clutter and road users are placed within this distance of the sensor (metres).
+    loose_walls : float
+        Mean number (Poisson) of free-standing wall pieces per kerb side: 2-7 m long,
+        0.05-0.4 m thick, 0.4-2.2 m tall, 0.5-15 m beyond the pavement, along the road
+        six times in ten and at any heading otherwise (garden walls, hoardings: on a real
+        sweep a piece of a fence the length of a car is what a network calls a car).
     """
 
     road_width: tuple[float, float] = (6.0, 16.0)
@@ -76,6 +83,8 @@ class StreetOptions:
             raise InvalidArgument(f"road_users={self.road_users!r} must be 0 <= low <= high")
         if not 10.0 <= self.reach <= 150.0:
             raise InvalidArgument(f"reach={self.reach!r} must be in [10, 150] m")
+        if not 0.0 <= self.loose_walls <= 50.0:
+            raise InvalidArgument(f"loose_walls={self.loose_walls!r} must be in [0, 50]")
 
 
 @dataclass
@@ -234,8 +243,8 @@ def _frontage(street: _Street, origin: NDArray[np.float64], heading: float, side
 
 
 def _loose_walls(street: _Street, origin: NDArray[np.float64], heading: float, side: float,
-                 edge: float, mean: float) -> None:
-    """Free-standing wall pieces a car's length or so (garden walls, hoardings)."""
+                 edge: float, mean: float) -> None:  # fmt: skip
+    """Free-standing wall pieces a car's length or so (``StreetOptions.loose_walls``)."""
     if mean <= 0:
         return
     rng = street.rng
@@ -245,7 +254,7 @@ def _loose_walls(street: _Street, origin: NDArray[np.float64], heading: float, s
         x, y = _to_sensor(u, v, origin, heading)
         yaw = heading if rng.random() < 0.6 else float(rng.uniform(0, math.pi))
         size = (float(rng.uniform(2.0, 7.0)), float(rng.uniform(0.05, 0.4)),
-                float(rng.uniform(0.4, 2.2)))
+                float(rng.uniform(0.4, 2.2)))  # fmt: skip
         street.clutter("building", x, y, size, yaw)
 
 
@@ -382,8 +391,9 @@ def street_scene(
                 inset = float(rng.uniform(0.4, max(pavement - 0.3, 0.5)))
                 _pavement_furniture(street, road_origin, road_heading, side, half + inset)
             _frontage(street, road_origin, road_heading, side, half + pavement)
-            _loose_walls(street, road_origin, road_heading, side, half + pavement,
-                         options.loose_walls)
+            _loose_walls(
+                street, road_origin, road_heading, side, half + pavement, options.loose_walls
+            )
     return Scene(
         sensor_height=round(height, 4),
         roi=street.roads,

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.description import BACKGROUND_INSTANCE
 from pytest_metamorphic.lidar.synthetic.streetscape import StreetOptions, street_scene
@@ -63,8 +64,37 @@ def test_bad_options_are_named() -> None:
         StreetOptions(road_width=(10.0, 5.0))
     with pytest.raises(InvalidArgument, match="reach"):
         StreetOptions(reach=500.0)
+    with pytest.raises(InvalidArgument, match="loose_walls"):
+        StreetOptions(loose_walls=-1.0)
     with pytest.raises(InvalidArgument, match="rng"):
         street_scene(3)  # type: ignore[arg-type]
+
+
+def _wall_pieces(scene) -> list:
+    """Background cuboids the size of a loose wall piece (2-7 m long, <= 0.4 m thick)."""
+    return [item for item in scene.background if item.kind == "building"
+            and 2.0 <= item.size[0] <= 7.0 and item.size[1] <= 0.4
+            and 0.4 <= item.size[2] <= 2.2]  # fmt: skip
+
+
+def test_loose_walls_stand_beside_the_road_the_length_of_a_car() -> None:
+    # Hard negatives for the learned detector: a piece of wall a car's length, where a
+    # car could park, that is not a car. Off the road, never over a road user (the
+    # clutter rules), and none unless asked for.
+    options = StreetOptions(loose_walls=3.0)
+    plain = sum(len(_wall_pieces(street_scene(np.random.default_rng(s)))) for s in range(20))
+    loose = 0
+    for seed in range(20):
+        scene = street_scene(np.random.default_rng(seed), options=options)
+        assert scene.roi is not None
+        pieces = _wall_pieces(scene)
+        loose += len(pieces)
+        for item in pieces:
+            inside = scene.roi.contains(_footprint(item), method="exact")
+            assert not (inside & (scene.roi.boundary_distance(_footprint(item)) > 0.1)).any()
+            for box in scene.boxes:
+                assert box.iou_bev(Box((*item.center, 0.0), item.size, item.yaw, "car")) == 0
+    assert loose >= plain + 5 * 20, (plain, loose)
 
 
 def _footprint(item, step: float = 0.5) -> np.ndarray:
