@@ -62,8 +62,9 @@ class StreetOptions:
     loose_walls : float
         Mean number (Poisson) of free-standing wall pieces per kerb side: 2-7 m long,
         0.05-0.4 m thick, 0.4-2.2 m tall, 0.5-15 m beyond the pavement, along the road
-        six times in ten and at any heading otherwise (garden walls, hoardings: on a real
-        sweep a piece of a fence the length of a car is what a network calls a car).
+        six times in ten and at any heading otherwise (garden walls, hoardings: hard
+        negatives for a learned detector, which calls a piece of fence a car's length a
+        car on real sweeps when it has not seen one).
     """
 
     road_width: tuple[float, float] = (6.0, 16.0)

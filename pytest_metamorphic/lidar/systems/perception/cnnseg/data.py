@@ -82,9 +82,9 @@ CALIBRATED_SHARE = 0.8  # of sweeps whose intensities are KITTI's (see _reflecta
 FAR_GROUND_SHARE = 0.8  # of sweeps that lose far road returns (see _far_ground_kept)
 FAR_GROUND_RANGE = (12.0, 25.0)  # metres within which a sweep keeps all of its road
 # Training streets have free-standing wall pieces a car's length or so beside them
-# (garden walls, hoardings): on real sweeps the network called such pieces of fences
-# "cars". Held-out and validation streets are drawn as for every model before, so that
-# models stay comparable on them.
+# (garden walls, hoardings): on the unlabelled KITTI crops the model trained without
+# them called such pieces of fence lines "cars". Held-out and validation streets are
+# drawn as for every model before, so that models stay comparable on them.
 TRAINING_STREETS = StreetOptions(loose_walls=3.0)
 HELD_OUT_STREETS = StreetOptions()
 CAMERA_HALF_WIDTH = 40.0  # degrees: KITTI's crops, measured
