@@ -9,7 +9,11 @@ import pytest
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.synthetic import render
-from pytest_metamorphic.lidar.synthetic.description import BACKGROUND_INSTANCE
+from pytest_metamorphic.lidar.synthetic.description import (
+    BACKGROUND_INSTANCE,
+    BackgroundObject,
+    Scene,
+)
 from pytest_metamorphic.lidar.synthetic.streetscape import StreetOptions, street_scene
 
 SEEDS = range(6)
@@ -70,7 +74,7 @@ def test_bad_options_are_named() -> None:
         street_scene(3)  # type: ignore[arg-type]
 
 
-def _wall_pieces(scene) -> list:
+def _wall_pieces(scene: Scene) -> list[BackgroundObject]:
     """Background cuboids the size of a loose wall piece (2-7 m long, <= 0.4 m thick)."""
     return [item for item in scene.background if item.kind == "building"
             and 2.0 <= item.size[0] <= 7.0 and item.size[1] <= 0.4
@@ -80,7 +84,7 @@ def _wall_pieces(scene) -> list:
 def test_loose_walls_stand_beside_the_road_the_length_of_a_car() -> None:
     # Hard negatives for the learned detector: a piece of wall a car's length, where a
     # car could park, that is not a car. Off the road, never over a road user (the
-    # clutter rules), and none unless asked for.
+    # clutter rules), and many more than the short fences a street has without them.
     options = StreetOptions(loose_walls=3.0)
     plain = sum(len(_wall_pieces(street_scene(np.random.default_rng(s)))) for s in range(20))
     loose = 0
