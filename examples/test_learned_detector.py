@@ -140,10 +140,10 @@ KITTI_000004 = conftest.SHARED_DATA / "kitti_openpcdet" / "training" / "velodyne
 @pytest.mark.skipif(not KITTI_000004.is_file(), reason=f"{KITTI_000004} is not there "
                     "(set PYTEST_METAMORPHIC_DATA to the shared data)")  # fmt: skip
 def test_range_steps_of_centimetres_make_the_network_lose_a_car_on_a_real_sweep() -> None:
-    # A real weakness, found by the claims bench after 988 follow-ups on rendered streets
-    # (0.18 m steps lose a car 20 m away that keeps 139 of its 185 returns) and within 20
-    # follow-ups on 8 of the 9 real KITTI sweeps: a driver that rounds ranges to a few
-    # centimetres changes which cells the network calls objects. Here, on KITTI 000004
+    # A real weakness on real sweeps (the claims bench's rendered streets held 1028
+    # follow-ups on this model; an earlier one lost a car there after 988): a driver
+    # that rounds ranges to a few centimetres changes which cells the network calls
+    # objects. Here, on KITTI 000004
     # (camera wedge as ROI), 10.7 cm steps lose a "car" 62 m away that keeps 63 of its 68
     # returns.
     sweep = Frame(read_bin(KITTI_000004), roi=kitti_label_region(max_range=70.0))
@@ -237,10 +237,11 @@ def test_repeating_returns_makes_the_detector_report_a_cyclist_it_drops_otherwis
 
 
 def test_removing_a_car_moves_another_12_m_away() -> None:
-    # A real weakness found by the claims bench: the network reads an object's
-    # surroundings, so removing one road user (its returns, with the ground behind it
-    # filled in) can change what it reports for another. Here, on held-out street 27
-    # (the first of streets 0-39 where ten derandomized removals find one), removing a
+    # A real weakness (the claims bench found it on an earlier model; this one held its
+    # 1048 follow-ups): the network reads an object's surroundings, so removing one road
+    # user (its returns, with the ground behind it filled in) can change what it reports
+    # for another. Here, on held-out street 27 (the only one of streets 0-39 where ten
+    # derandomized removals find one), removing a
     # car 53 m from the sensor moves the box of a car 67 m away (their footprints 12 m
     # apart), whose returns it does not touch, by 0.85 m.
     (removed,) = [r for r in LEARNED_RELATIONS if r.name.startswith("an object removed")]
