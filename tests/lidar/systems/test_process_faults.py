@@ -200,6 +200,19 @@ def _group(pgid: int) -> list[int]:
     return members
 
 
+def _describe(pids: list[int]) -> str:
+    """Each process's state and command line, for a failure message."""
+    lines = []
+    for pid in pids:
+        try:
+            state = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0]
+            command = (Path("/proc") / str(pid) / "cmdline").read_bytes().replace(b"\0", b" ")
+        except OSError:
+            state, command = "gone", b""
+        lines.append(f"{pid} [{state}] {command.decode(errors='replace')[:200]}")
+    return "; ".join(lines)
+
+
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc to find the processes")
 @pytest.mark.parametrize("signal_number", [15, 9], ids=["SIGTERM", "SIGKILL"])
 def test_a_persistent_detector_dies_with_its_parent(tmp_path: Path, signal_number: int) -> None:
@@ -218,7 +231,9 @@ def test_a_persistent_detector_dies_with_its_parent(tmp_path: Path, signal_numbe
         assert len(_group(group)) >= 3  # the watchdog, the detector, its helper
         os.kill(parent.pid, signal_number)
         parent.wait(10)
-        assert eventually(lambda: not _group(group), 10), _group(group)
+        # 30 s: a loaded machine (a CI job beside other work) once kept one member alive
+        # past 10 s; the message says what it was if it happens again.
+        assert eventually(lambda: not _group(group), 30), _describe(_group(group))
         assert gone(helper)
     finally:
         parent.kill()
