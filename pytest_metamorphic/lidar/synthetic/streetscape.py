@@ -84,8 +84,9 @@ class StreetOptions:
             raise InvalidArgument(f"road_users={self.road_users!r} must be 0 <= low <= high")
         if not 10.0 <= self.reach <= 150.0:
             raise InvalidArgument(f"reach={self.reach!r} must be in [10, 150] m")
-        if not 0.0 <= self.loose_walls <= 50.0:
-            raise InvalidArgument(f"loose_walls={self.loose_walls!r} must be in [0, 50]")
+        walls = self.loose_walls
+        if isinstance(walls, bool) or not isinstance(walls, int | float) or not 0 <= walls <= 50:
+            raise InvalidArgument(f"loose_walls={walls!r} must be a number in [0, 50]")
 
 
 @dataclass

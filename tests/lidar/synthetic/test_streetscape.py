@@ -68,8 +68,9 @@ def test_bad_options_are_named() -> None:
         StreetOptions(road_width=(10.0, 5.0))
     with pytest.raises(InvalidArgument, match="reach"):
         StreetOptions(reach=500.0)
-    with pytest.raises(InvalidArgument, match="loose_walls"):
-        StreetOptions(loose_walls=-1.0)
+    for walls in (-1.0, float("nan"), "3", None, True):
+        with pytest.raises(InvalidArgument, match="loose_walls"):
+            StreetOptions(loose_walls=walls)  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="rng"):
         street_scene(3)  # type: ignore[arg-type]
 
