@@ -16,6 +16,9 @@ already knows (cuboids, poles, trees), laid out along a straight road or a cross
   from several depths), trees and poles along the pavement, and sometimes nothing;
 * loose wall pieces (``StreetOptions.loose_walls``, none by default): free-standing
   walls a car's length or so beyond the pavement;
+* street furniture (``StreetOptions.furniture``, none by default): free-standing things
+  up to a car's size that are not cars (cabinets, bins and skips, planters, benches,
+  shrubs) on the pavement and beyond it;
 * road users: cars, vans, cyclists and pedestrians on the road, pedestrians on the
   pavements (standing on them).
 
@@ -65,6 +68,12 @@ class StreetOptions:
         six times in ten and at any heading otherwise (garden walls, hoardings: hard
         negatives for a learned detector, which calls a piece of fence a car's length a
         car on real sweeps when it has not seen one).
+    furniture : float
+        Mean number (Poisson) of pieces of street furniture per kerb side, from the kerb to
+        15 m beyond the pavement: boxes (cabinets, bins and skips, planters, benches) 0.4-3.5
+        m long, 0.3-2.2 m wide and 0.3-2.2 m tall, at the road's heading or across it
+        mostly, or shrubs (foliage clumps 1-3.5 m across). Hard negatives, as loose wall
+        pieces are: things of a car's size or less that are not road users.
     """
 
     road_width: tuple[float, float] = (6.0, 16.0)
@@ -73,6 +82,7 @@ class StreetOptions:
     parked: float = 0.6
     reach: float = 75.0
     loose_walls: float = 0.0
+    furniture: float = 0.0
 
     def __post_init__(self) -> None:
         low, high = self.road_width
@@ -84,9 +94,10 @@ class StreetOptions:
             raise InvalidArgument(f"road_users={self.road_users!r} must be 0 <= low <= high")
         if not 10.0 <= self.reach <= 150.0:
             raise InvalidArgument(f"reach={self.reach!r} must be in [10, 150] m")
-        walls = self.loose_walls
-        if isinstance(walls, bool) or not isinstance(walls, int | float) or not 0 <= walls <= 50:
-            raise InvalidArgument(f"loose_walls={walls!r} must be a number in [0, 50]")
+        for name in ("loose_walls", "furniture"):
+            mean = getattr(self, name)
+            if isinstance(mean, bool) or not isinstance(mean, int | float) or not 0 <= mean <= 50:
+                raise InvalidArgument(f"{name}={mean!r} must be a number in [0, 50]")
 
 
 @dataclass
@@ -260,6 +271,28 @@ def _loose_walls(street: _Street, origin: NDArray[np.float64], heading: float, s
         street.clutter("building", x, y, size, yaw)
 
 
+def _furniture(street: _Street, origin: NDArray[np.float64], heading: float, side: float,
+               kerb: float, pavement: float, mean: float) -> None:  # fmt: skip
+    """Street furniture from the kerb outward (``StreetOptions.furniture``)."""
+    if mean <= 0:
+        return
+    rng = street.rng
+    for _ in range(int(rng.poisson(mean))):
+        u = float(rng.uniform(-street.reach, street.reach))
+        v = side * (kerb + float(rng.uniform(0.3, pavement + 15.0)))
+        if rng.random() < 0.3:  # a shrub
+            across = float(rng.uniform(1.0, 3.5))
+            _hedge(street, origin, heading, u - across / 2, across, v, across)
+            continue
+        x, y = _to_sensor(u, v, origin, heading)
+        length = float(rng.uniform(0.4, 3.5))
+        size = (length, float(rng.uniform(0.3, min(length, 2.2))), float(rng.uniform(0.3, 2.2)))
+        yaw = heading + (math.pi / 2 if rng.random() < 0.3 else 0.0)
+        if rng.random() < 0.3:
+            yaw = float(rng.uniform(0, math.pi))
+        street.clutter("building", x, y, size, yaw)
+
+
 def _hedge(street: _Street, origin: NDArray[np.float64], heading: float, u: float, length: float,
            v: float, depth: float) -> None:  # fmt: skip
     """Foliage: clumps of small cuboids of varied height over a strip ``length`` long."""
@@ -396,6 +429,7 @@ def street_scene(
             _loose_walls(
                 street, road_origin, road_heading, side, half + pavement, options.loose_walls
             )
+            _furniture(street, road_origin, road_heading, side, half, pavement, options.furniture)
     return Scene(
         sensor_height=round(height, 4),
         roi=street.roads,

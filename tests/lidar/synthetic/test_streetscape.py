@@ -71,6 +71,8 @@ def test_bad_options_are_named() -> None:
     for walls in (-1.0, float("nan"), "3", None, True):
         with pytest.raises(InvalidArgument, match="loose_walls"):
             StreetOptions(loose_walls=walls)  # type: ignore[arg-type]
+        with pytest.raises(InvalidArgument, match="furniture"):
+            StreetOptions(furniture=walls)  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="rng"):
         street_scene(3)  # type: ignore[arg-type]
 
@@ -100,6 +102,46 @@ def test_loose_walls_stand_beside_the_road_the_length_of_a_car() -> None:
             for box in scene.boxes:
                 assert box.iou_bev(Box((*item.center, 0.0), item.size, item.yaw, "car")) == 0
     assert loose >= plain + 5 * 20, (plain, loose)
+
+
+def _furniture_boxes(scene: Scene) -> list[BackgroundObject]:
+    """Background cuboids of a piece of furniture's size (thicker than a wall piece, taller
+    than a kerb, shorter than a fence, larger than a foliage clump)."""
+    return [item for item in scene.background if item.kind == "building"
+            and 0.7 <= item.size[0] <= 3.5 and 0.45 <= item.size[1] <= 2.2
+            and 0.3 <= item.size[2] <= 2.2]  # fmt: skip
+
+
+def test_street_furniture_stands_off_the_road_and_clear_of_road_users() -> None:
+    # Hard negatives of a car's size or less: boxes (and shrubs) from the kerb outward,
+    # never on the road or over a road user, and many more than a street has without.
+    options = StreetOptions(furniture=6.0)
+    plain = sum(len(_furniture_boxes(street_scene(np.random.default_rng(s)))) for s in range(20))
+    boxes = 0
+    for seed in range(20):
+        scene = street_scene(np.random.default_rng(seed), options=options)
+        assert scene.roi is not None
+        pieces = _furniture_boxes(scene)
+        boxes += len(pieces)
+        for item in pieces:
+            inside = scene.roi.contains(_footprint(item), method="exact")
+            assert not (inside & (scene.roi.boundary_distance(_footprint(item)) > 0.1)).any()
+            for box in scene.boxes:
+                assert box.iou_bev(Box((*item.center, 0.0), item.size, item.yaw, "car")) == 0
+    assert boxes >= plain + 2 * 20, (plain, boxes)
+
+
+def test_streets_without_the_options_draw_as_before() -> None:
+    # The options draw nothing when zero, so held-out and validation streets (drawn
+    # without them) stay the streets every earlier model was measured on.
+    for seed in range(5):
+        plain = street_scene(np.random.default_rng(seed))
+        zero = street_scene(np.random.default_rng(seed), options=StreetOptions(furniture=0.0))
+        assert plain == zero
+        walls = street_scene(np.random.default_rng(seed), options=StreetOptions(loose_walls=3.0))
+        assert walls != street_scene(
+            np.random.default_rng(seed), options=StreetOptions(loose_walls=3.0, furniture=6.0)
+        )
 
 
 def _footprint(item, step: float = 0.5) -> np.ndarray:
