@@ -4,9 +4,8 @@ resembles (no PyTorch).
 Four in five training scenes are
 :func:`~pytest_metamorphic.lidar.synthetic.streetscape.street_scene` streets: kerbs and
 pavements, parked rows of cars and vans, façades, fences, hedges, trees and poles,
-free-standing wall pieces a car's length or so and street furniture (boxes and shrubs of
-a car's size or less; :data:`TRAINING_STREETS`), road users on the road and pedestrians
-on the pavements. The fifth is a
+free-standing wall pieces a car's length or so (:data:`TRAINING_STREETS`), road users on
+the road and pedestrians on the pavements. The fifth is a
 :func:`~pytest_metamorphic.lidar.synthetic.layout.random_scene` street (road users in an
 ROI, clutter kept off it), the scenes the relation library's strategies draw. Each is
 rendered with the HDL-64E (four in five) or another sensor of
@@ -21,10 +20,9 @@ far road, the intensities and the camera's edges were measured on the two unlabe
 KITTI sweeps of the shared data.
 
 Held-out scenes (:func:`held_out_frame`) come from the same distribution, without the
-loose wall pieces and the furniture (so that every model is measured on the same
-streets), with seeds no training scene uses. Real sweeps never enter training: the
-labelled KITTI sweeps measure the model (``bench/learned.py``), and nothing was tuned on
-them.
+loose wall pieces (so that every model is measured on the same streets), with seeds no
+training scene uses. Real sweeps never enter training: the labelled KITTI sweeps measure
+the model (``bench/learned.py``), and nothing was tuned on them.
 """
 
 from __future__ import annotations
@@ -85,10 +83,9 @@ FAR_GROUND_SHARE = 0.8  # of sweeps that lose far road returns (see _far_ground_
 FAR_GROUND_RANGE = (12.0, 25.0)  # metres within which a sweep keeps all of its road
 # Training streets have free-standing wall pieces a car's length or so beside them
 # (garden walls, hoardings): on the unlabelled KITTI crops the model trained without
-# them called such pieces of fence lines "cars". Street furniture generalises them: things
-# of a car's size or less that are not road users. Held-out and validation streets are
+# them called such pieces of fence lines "cars". Held-out and validation streets are
 # drawn as for every model before, so that models stay comparable on them.
-TRAINING_STREETS = StreetOptions(loose_walls=3.0, furniture=6.0)
+TRAINING_STREETS = StreetOptions(loose_walls=3.0)
 HELD_OUT_STREETS = StreetOptions()
 CAMERA_HALF_WIDTH = 40.0  # degrees: KITTI's crops, measured
 CAMERA_LOWEST = -14.0  # degrees below the camera's horizon: KITTI's crops, measured
@@ -244,7 +241,7 @@ def training_frame(seed: int, *, streets: StreetOptions = TRAINING_STREETS) -> F
 
 def held_out_frame(index: int) -> Frame:
     """Held-out scene ``index``: the training distribution without the loose wall
-    pieces and the furniture (:data:`HELD_OUT_STREETS`), a seed training never uses."""
+    pieces (:data:`HELD_OUT_STREETS`), a seed training never uses."""
     return training_frame(HELD_OUT_SEED_OFFSET + index, streets=HELD_OUT_STREETS)
 
 

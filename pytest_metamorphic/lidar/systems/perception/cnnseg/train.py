@@ -320,8 +320,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         "epochs": args.epochs,
         "width": args.width,
         "scene_options": json.dumps({k: v for k, v in SCENE_OPTIONS.items()}),
-        "training_data": "cnnseg.data: 80% streetscape streets (with loose wall pieces "
-        "and street furniture), 20% random_scene; "
+        "training_data": "cnnseg.data: 80% streetscape streets (with loose wall pieces), "
+        "20% random_scene; "
         "HDL-64E 80%, other sensors 20%; degraded (noise, dropout, dead lasers, lost "
         "packets, reflectance, tilt, camera crops)",
         "training_window": CROP,
