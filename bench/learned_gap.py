@@ -21,6 +21,12 @@ edge, where the road is out of sight, the lowest return of a car would be its ow
   its outline spans (the HDL-64E's lasers between its lowest and highest elevation times
   its azimuth span over the sweep's azimuth step, the median gap between neighbouring
   returns of one laser);
+* surface return share: on surfaces above the ground (returns more than 0.3 m up),
+  5-40 m and 40-70 m away, the share of a laser's rays that return between two returns
+  of one surface (neighbours in azimuth on one laser, ranges within 2 % or 0.3 m, at most
+  6 steps apart): whether far surfaces lose returns a render keeps (a laser is the
+  sweep's ``ring`` field, or on a KITTI file, whose points run laser by laser, the run
+  between two jumps in azimuth);
 * the shipped model on the same sweeps (``--detector``, whole-sweep features, no ROI,
   without ``CNNSegParams.max_lift``, which drops what floats): the share of those car-shaped
   clusters with a reported car whose centre lies within 2 m of theirs, a label-free hint
@@ -88,6 +94,8 @@ class Gap:
     nearest_road: list[float] = field(default_factory=list)
     nearest_elevation: list[float] = field(default_factory=list)
     car_share: list[float] = field(default_factory=list)
+    surface_near: list[float] = field(default_factory=list)
+    surface_far: list[float] = field(default_factory=list)
     cars_found: list[bool] = field(default_factory=list)
     heading_error: list[float] = field(default_factory=list)
     floating_cars: list[int] = field(default_factory=list)
@@ -101,6 +109,42 @@ def _azimuth_step(points: np.ndarray, row: np.ndarray) -> float:
     same = np.diff(row[order]) == 0
     gaps = gaps[same & (gaps > 1e-6)]
     return float(np.median(gaps)) if len(gaps) else math.radians(0.18)
+
+
+def _lasers(frame: Frame) -> np.ndarray:
+    """Each return's laser: the ``ring`` field, or on a KITTI file (which holds its
+    returns laser by laser, each in azimuth order) the run between two jumps in azimuth."""
+    ring = frame.cloud.fields.get("ring")
+    if ring is not None:
+        return np.asarray(ring, dtype=np.int64)
+    points = np.asarray(frame.cloud.points)
+    azimuth = np.arctan2(points[:, 1], points[:, 0])
+    starts = np.zeros(len(points), dtype=np.int64)
+    starts[1:] = np.abs(np.diff(azimuth)) > math.radians(5.0)
+    return np.cumsum(starts)
+
+
+def _surface_share(points: np.ndarray, lasers: np.ndarray, above: np.ndarray, low: float,
+                   high: float) -> float | None:  # fmt: skip
+    """Rays that return over rays spanned between neighbouring returns of one surface."""
+    distance = np.hypot(points[:, 0], points[:, 1])
+    azimuth = np.arctan2(points[:, 1], points[:, 0])
+    spanned = missing = 0
+    for laser in np.unique(lasers):
+        index = np.flatnonzero(lasers == laser)
+        index = index[np.argsort(azimuth[index])]
+        steps = np.diff(azimuth[index])
+        if np.count_nonzero(steps > 1e-5) < 5:
+            continue
+        # The laser's azimuth step: most neighbouring returns are one step apart.
+        rays = np.round(steps / np.percentile(steps[steps > 1e-5], 25)).astype(np.int64)
+        a, b = index[:-1], index[1:]
+        surface = (above[a] > 0.3) & (above[b] > 0.3) & (rays >= 1) & (rays <= 6)
+        surface &= np.abs(distance[a] - distance[b]) < np.maximum(0.3, 0.02 * distance[a])
+        surface &= (distance[a] >= low) & (distance[a] < high)
+        spanned += int(rays[surface].sum())
+        missing += int((rays[surface] - 1).sum())
+    return 1.0 - missing / spanned if spanned >= 50 else None
 
 
 def _car_clusters(points: np.ndarray, above: np.ndarray) -> list[np.ndarray]:
@@ -138,6 +182,7 @@ def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
     """Add one sweep's measures to ``gap``."""
     points = np.asarray(frame.cloud.points, dtype=np.float64)
     wedge = (points[:, 0] > 0) & (np.abs(np.arctan2(points[:, 1], points[:, 0])) < WEDGE)
+    lasers = _lasers(frame)[wedge]
     points = points[wedge]
     ground_z = ground_heights(points[:, :3].astype(np.float32)).astype(np.float64)
     above = points[:, 2] - ground_z
@@ -167,6 +212,10 @@ def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
     step = _azimuth_step(points, row)
     cars = _car_clusters(points, above)
     gap.car_share.extend(_car_share(points, members, step) for members in cars)
+    for (low, high), into in (((5.0, 40.0), gap.surface_near), ((40.0, 70.0), gap.surface_far)):
+        share = _surface_share(points, lasers, above, low, high)
+        if share is not None:
+            into.append(share)
     if detector is not None:
         _judge_detections(frame, points, cars, gap, detector)
 
@@ -214,6 +263,8 @@ ROWS = (
     ("nearest road return, m", "nearest_road", 1),
     ("its elevation, degrees", "nearest_elevation", 1),
     ("share of a car's rays that return (car-shaped clusters, 40 m)", "car_share", 2),
+    ("share of rays that return on surfaces above the ground, 5-40 m", "surface_near", 3),
+    ("the same, 40-70 m", "surface_far", 3),
 )
 
 
