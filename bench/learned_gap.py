@@ -113,7 +113,10 @@ def _azimuth_step(points: np.ndarray, row: np.ndarray) -> float:
 
 def _lasers(frame: Frame) -> np.ndarray:
     """Each return's laser: the ``ring`` field, or on a KITTI file (which holds its
-    returns laser by laser, each in azimuth order) the run between two jumps in azimuth."""
+    returns laser by laser, each in azimuth order) the run between two jumps in azimuth.
+    Not ``derive_rings``: a camera crop cuts each laser's revolution, which its
+    scan-order recovery (whole revolutions) does not recognise, and rings by elevation
+    are off by a few on a real unit; a run here is a laser's part of the crop."""
     ring = frame.cloud.fields.get("ring")
     if ring is not None:
         return np.asarray(ring, dtype=np.int64)

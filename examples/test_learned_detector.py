@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, Phase, settings
@@ -198,7 +197,7 @@ CORNER_PEDESTRIAN_LOST = (
 )
 
 
-def _check_on_the_junction(name: str, fault: Any) -> Callable[[], None]:
+def _check_on_the_junction(name: str, fault: DropAzimuthBlock | DropRings) -> Callable[[], None]:
     """A one-example metamorphic test: the junction, and ``fault`` applied to it, through
     the ROI-feature network, well-covered obstacles kept."""
     relation = MetamorphicRelation(
