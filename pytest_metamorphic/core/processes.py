@@ -15,6 +15,11 @@ memory:
   stdin, stdout and stderr straight to the program and exits with its status. (A child
   this process *forks* while the program runs inherits the write end and keeps the
   watchdog waiting until it exits too. POSIX only; on Windows programs run directly.);
+* when the program ends, **whatever it started ends with it**: the watchdog steps out of
+  the group and kills it before it reports the program's exit status. Leaving that to
+  this process is not enough: when this process dies, the kernel may release the
+  program's stdin a moment before the watchdog's pipe, so the program ends (end of
+  input) before the watchdog learns that this process is gone;
 * its **stderr goes to a file**, never a pipe, and only the last ``tail`` bytes are ever
   read back (the file is cut back to its tail while a long-lived program runs);
 * :func:`run_command` waits for the program itself, not for pipes its helpers inherited;
@@ -36,7 +41,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
-from typing import IO
+from typing import IO, Any
 
 from pytest_metamorphic.core.errors import ExternalSystemError, SystemTimeout
 
@@ -92,9 +97,12 @@ def _tail(handle: IO[bytes], size: int = STDERR_TAIL) -> str:
 
 
 # The watchdog: runs the program as its child (same process group), and kills the group
-# when the pipe from the test process reads end-of-file (that process is gone), or exits
-# with the program's status when the program ends. Only os, sys, select and signal: it
-# starts in a few milliseconds with -S -E.
+# when the pipe from the test process reads end-of-file (that process is gone). When the
+# program ends, it moves into the test process's group (a process may join a group of its
+# own session), kills its old group (the program's leftovers) and exits with the
+# program's status; if the test process is already gone (the group is in another session,
+# or there is none), the status has no reader and the whole group is killed. Only os,
+# sys, select and signal: it starts in a few milliseconds with -S -E.
 _WATCHDOG = """
 import os, select, signal, sys
 watch = int(sys.argv[1])
@@ -127,6 +135,15 @@ while True:
         os.read(wake_read, 512)
     if watch in ready and not os.read(watch, 1):
         os.killpg(0, signal.SIGKILL)
+group = os.getpgid(0)
+try:
+    os.setpgid(0, os.getpgid(os.getppid()))
+except OSError:
+    os.killpg(0, signal.SIGKILL)
+try:
+    os.killpg(group, signal.SIGKILL)
+except OSError:
+    pass
 if os.WIFSIGNALED(status):
     number = os.WTERMSIG(status)
     if number not in (signal.SIGKILL, signal.SIGSTOP):
@@ -144,6 +161,18 @@ def _found(program: str, env: Mapping[str, str] | None, cwd: str | None) -> bool
         return os.access(path, os.X_OK) and os.path.isfile(path)
     search = (env if env is not None else os.environ).get("PATH", os.defpath)
     return shutil.which(program, path=search) is not None
+
+
+# Its own process group, killed as a whole. Not its own session: the watchdog must be able
+# to move into the test process's group when the program ends (a session leader cannot
+# change its group). Popen's process_group is new in Python 3.11.
+_OWN_GROUP: dict[str, Any]
+if not hasattr(os, "setpgid"):  # pragma: no cover - Windows: no process groups of this kind
+    _OWN_GROUP = {"start_new_session": True}
+elif sys.version_info >= (3, 11):
+    _OWN_GROUP = {"process_group": 0}
+else:  # pragma: no cover - Python 3.10
+    _OWN_GROUP = {"preexec_fn": os.setpgrp}
 
 
 def _popen(
@@ -174,9 +203,9 @@ def _popen(
             stderr=stderr,
             env=None if env is None else dict(env),
             cwd=cwd,
-            start_new_session=True,  # its own process group: killed as a whole
             close_fds=True,
             pass_fds=keep,
+            **_OWN_GROUP,
         )
     except BaseException:
         if watch is not None:
