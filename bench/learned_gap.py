@@ -21,6 +21,9 @@ edge, where the road is out of sight, the lowest return of a car would be its ow
   its outline spans (the HDL-64E's lasers between its lowest and highest elevation times
   its azimuth span over the sweep's azimuth step, the median gap between neighbouring
   returns of one laser);
+* window band: the share of such a cluster's returns 60-90 % of its height above the
+  ground, where a real car has its windows and the renderer's cabin is solid (glass lets
+  a beam through to the seats or the far side, or reflects it away);
 * surface return share: on surfaces above the ground (returns more than 0.3 m up),
   5-40 m and 40-70 m away, the share of a laser's rays that return between two returns
   of one surface (neighbours in azimuth on one laser, ranges within 2 % or 0.3 m, at most
@@ -94,6 +97,7 @@ class Gap:
     nearest_road: list[float] = field(default_factory=list)
     nearest_elevation: list[float] = field(default_factory=list)
     car_share: list[float] = field(default_factory=list)
+    car_window_band: list[float] = field(default_factory=list)
     surface_near: list[float] = field(default_factory=list)
     surface_far: list[float] = field(default_factory=list)
     cars_found: list[bool] = field(default_factory=list)
@@ -181,6 +185,13 @@ def _car_share(points: np.ndarray, members: np.ndarray, step: float) -> float:
     return float(min(1.0, len(members) / rays))
 
 
+def _window_band(above: np.ndarray) -> float:
+    """The share of a cluster's returns 60-90 % of its height above the ground: its
+    windows on a real car (the renderer's cabin is solid)."""
+    height = above / np.max(above)
+    return float(np.mean((height >= 0.6) & (height < 0.9)))
+
+
 def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
     """Add one sweep's measures to ``gap``."""
     points = np.asarray(frame.cloud.points, dtype=np.float64)
@@ -215,6 +226,7 @@ def measure(frame: Frame, gap: Gap, detector: object | None) -> None:
     step = _azimuth_step(points, row)
     cars = _car_clusters(points, above)
     gap.car_share.extend(_car_share(points, members, step) for members in cars)
+    gap.car_window_band.extend(_window_band(above[members]) for members in cars)
     for (low, high), into in (((5.0, 40.0), gap.surface_near), ((40.0, 70.0), gap.surface_far)):
         share = _surface_share(points, lasers, above, low, high)
         if share is not None:
@@ -266,6 +278,7 @@ ROWS = (
     ("nearest road return, m", "nearest_road", 1),
     ("its elevation, degrees", "nearest_elevation", 1),
     ("share of a car's rays that return (car-shaped clusters, 40 m)", "car_share", 2),
+    ("share of its returns 60-90 % of its height up (its windows)", "car_window_band", 2),
     ("share of rays that return on surfaces above the ground, 5-40 m", "surface_near", 3),
     ("the same, 40-70 m", "surface_far", 3),
 )
