@@ -35,6 +35,7 @@ batches (``pytest_metamorphic.core.batching``).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 
 import pytest
@@ -190,11 +191,23 @@ def _junction() -> Frame:
 
 
 # The "pedestrian" the network reports at the junction's building corner (20.5, 13.2),
-# 32.8 degrees from the sensor, with 69 returns, which each fault below leaves in place.
+# 32.8 degrees from the sensor, with about 70 returns, which each fault below leaves in
+# place. What the tests are about is that the fault takes none of its returns (the
+# count after the fault equals the count before), not the count itself: the ray
+# caster's release decides whether the corner holds 69 or 70 of them (embreex 4.4 and
+# trimesh 5.2 render 70), and a test must not hinge on that.
 CORNER_PEDESTRIAN_LOST = (
-    r"pedestrian at \(20\.5, 13\.2\) lost although its box still holds 69 points "
-    r"after the fault \(69 before"
+    r"pedestrian at \(20\.5, 13\.2\) lost although its box still holds (?P<after>\d+) "
+    r"points after the fault \((?P<before>\d+) before"
 )
+
+
+def _assert_untouched_pedestrian_lost(error: pytest.ExceptionInfo[MetamorphicViolation]) -> None:
+    """The violation lost the corner's pedestrian, and the fault took none of its returns."""
+    found = re.search(CORNER_PEDESTRIAN_LOST, str(error.value))
+    assert found, str(error.value)
+    assert found["after"] == found["before"], found.group(0)
+    assert int(found["after"]) >= 30  # well covered: the relation's own floor
 
 
 def _check_on_the_junction(name: str, fault: DropAzimuthBlock | DropRings) -> Callable[[], None]:
@@ -218,24 +231,26 @@ def _check_on_the_junction(name: str, fault: DropAzimuthBlock | DropRings) -> Ca
 def test_two_lost_packets_beside_it_make_the_network_drop_a_pedestrian() -> None:
     # A real weakness, found by bench/mutation_score.py's 100-case search on its junction:
     # the network reports a "pedestrian" at (20.5, 13.2), at the building's corner (32.8
-    # degrees), with 69 returns, and loses it when the two packets at 29.7-31.7 degrees
+    # degrees), with about 70 returns, and loses it when the two packets at 29.7-31.7 degrees
     # are lost, which hold none of them. A detection near the network's threshold flips
     # when its surroundings change; so lost packets are not claimed for this model.
     check = _check_on_the_junction(
         "two packets beside it lost => well-covered obstacles kept",
         DropAzimuthBlock(math.radians(29.663), math.radians(2.074)),
     )
-    with pytest.raises(MetamorphicViolation, match=CORNER_PEDESTRIAN_LOST):
+    with pytest.raises(MetamorphicViolation) as error:
         check()
+    _assert_untouched_pedestrian_lost(error)
 
 
 def test_one_dead_laser_makes_the_network_drop_the_same_pedestrian() -> None:
     # The same "pedestrian" at the junction's building corner, lost when laser 45 of the
-    # HDL-64E is dead, which takes none of its 69 returns (of the 64 single dead lasers,
+    # HDL-64E is dead, which takes none of its returns (of the 64 single dead lasers,
     # 45 and 52 lose it): so dead lasers are not claimed for this model either.
     check = _check_on_the_junction("laser 45 dead => well-covered obstacles kept", DropRings([45]))
-    with pytest.raises(MetamorphicViolation, match=CORNER_PEDESTRIAN_LOST):
+    with pytest.raises(MetamorphicViolation) as error:
         check()
+    _assert_untouched_pedestrian_lost(error)
 
 
 @pytest.mark.slow  # about a minute: the follow-up's reduction runs 500 SUT calls
