@@ -97,17 +97,12 @@ def components() -> dict[str, tuple[Any, str, float]]:
 
 
 def run_pair(system: Any, frame: Frame, source_output: Any, relation: Any, followup: Any) -> Any:
-    """One follow-up judged as the engine judges it (a history runs the source twice first)."""
+    """One follow-up judged as the engine judges it (a history runs its input twice first)."""
     if not isinstance(followup, Followup):
         followup = Followup(followup)
     if followup.skipped:
         return None
-    source = source_output
-    if followup.before:
-        system(frame)
-        source = system(frame)
-        for earlier in followup.before:
-            system(earlier)
+    source = followup.compared_output(system, source_output)
     output = system(followup.input)
     return relation.relation.check(
         source, output, CheckContext(frame, followup.input, params=followup.params)

@@ -44,17 +44,31 @@ class Followup:
 
     ``before``: inputs the system runs on, in order, just before this follow-up, their
     outputs discarded (a history: the same sweep after other sweeps tests that a per-frame
-    system carries nothing from one call to the next). The engine then runs the source
-    twice first and compares the follow-up's output with the second run's (the source
-    right after itself: a failing case replays alike, whatever ran before it), runs the
-    follow-up afresh, never batched, and does not re-check its violation for determinism
-    (a history violation *is* one).
+    system carries nothing from one call to the next). The engine then runs the
+    follow-up's own input twice first (the source itself for a plain history, a degraded
+    sweep for a history under faults) and compares the follow-up's output with the second
+    run's (that input right after itself: a failing case replays alike, whatever ran
+    before it), runs the follow-up afresh, never batched, and does not re-check its
+    violation for determinism (a history violation *is* one).
     """
 
     input: Any
     params: Mapping[str, Any] = field(default_factory=dict)
     skipped: str | None = None
     before: tuple[Any, ...] = ()
+
+    def compared_output(self, system: Callable[[Any], Any], source_output: Any) -> Any:
+        """What this follow-up's output is compared with when ``system`` runs it outside
+        the engine: ``source_output``, or for a history the engine's baseline (its input
+        run twice), after which the earlier inputs are run, in order, as the engine does.
+        Call it right before running ``system`` on :attr:`input`."""
+        if not self.before:
+            return source_output
+        system(self.input)
+        baseline = system(self.input)
+        for earlier in self.before:
+            system(earlier)
+        return baseline
 
     @classmethod
     def not_applicable(cls, source: Any, reason: str) -> Followup:

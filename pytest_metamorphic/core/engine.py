@@ -216,7 +216,7 @@ class _Runner:
                         recorder.reasons.setdefault(mr.name, item.skipped)
                     continue
                 what = f"follow-up {index} of relation {mr.name!r}"
-                # A history's output is compared with the source's right after the source.
+                # A history's output is compared with its own input's right after itself.
                 settled = self._run_history(case, item, fixtures, what, mr.name, stats)
                 compared = source_output if settled is _NO_HISTORY else settled
                 try:
@@ -249,14 +249,15 @@ class _Runner:
         relation: str,
         stats: Any,
     ) -> Any:
-        """For a follow-up with earlier inputs: the source's output right after the source
-        itself (run twice: what a system with state gives after that source, whatever ran
-        before the case, so a failing case replays alike), then the earlier inputs, in
-        order (outputs discarded). ``_NO_HISTORY`` for any other follow-up."""
+        """For a follow-up with earlier inputs: its input's output right after that input
+        (run twice: the source for a plain history, a degraded sweep under faults; a
+        failing case replays alike), then the earlier inputs, in order (outputs
+        discarded). ``_NO_HISTORY`` for any other follow-up."""
         __tracebackhide__ = True
         if not item.before:
             return _NO_HISTORY
-        runs = [(case.source, "the source input (before a history)")] * 2
+        itself = "the source input" if item.input is case.source else f"the input of {what}"
+        runs = [(item.input, f"{itself} (before a history)")] * 2
         runs += [
             (value, f"earlier input {step} of {what}") for step, value in enumerate(item.before)
         ]

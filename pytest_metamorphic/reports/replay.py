@@ -124,12 +124,14 @@ def replay_inputs(
     A follow-up whose parameters hold a history (a ``params["history"]`` with
     ``earlier_inputs(source)``, such as
     :class:`~pytest_metamorphic.lidar.followups.history.EarlierSweeps`) runs after those
-    inputs, as it did in the test."""
+    inputs, as it did in the test, and is compared with its own input's output right
+    after that input (the source's for a plain history)."""
     source_output = system(source)
     earlier = getattr(followup.params.get("history"), "earlier_inputs", None)
     history = list(earlier(source)) if callable(earlier) else list(followup.before)
-    if history:  # as the engine: the source right after itself, then the history
-        source_output = system(source)
+    if history:  # as the engine: the follow-up's input right after itself, then the history
+        system(followup.input)
+        source_output = system(followup.input)
         for value in history:
             system(value)
     followup_output = system(followup.input)

@@ -34,6 +34,7 @@ _LAZY: dict[str, str] = {
     "relocated_objects": "_edits",
     "removed_objects": "_edits",
     "earlier_sweeps": "_history",
+    "degraded_earlier_sweeps": "_history",
     "aeb_scenarios": "_driving",
     "ego_speed_changes": "_driving",
     "straight_roads": "_driving",
@@ -42,6 +43,7 @@ _LAZY: dict[str, str] = {
 __all__ = [
     "aeb_scenarios",
     "dead_beams",
+    "degraded_earlier_sweeps",
     "dropped_points",
     "duplicated_points",
     "earlier_sweeps",
@@ -84,7 +86,7 @@ if TYPE_CHECKING:  # pragma: no cover
         weathered_frames,
     )
     from pytest_metamorphic.strategies._frames import frames
-    from pytest_metamorphic.strategies._history import earlier_sweeps
+    from pytest_metamorphic.strategies._history import degraded_earlier_sweeps, earlier_sweeps
     from pytest_metamorphic.strategies._noise import (
         dropped_points,
         duplicated_points,

@@ -23,12 +23,14 @@ from pytest_metamorphic.core.matching import one_to_one
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, box_support
+from pytest_metamorphic.lidar.model.pose import SensorPose
 
 __all__ = [
     "SAME_OBSTACLE",
     "TURN_TOLERANCES",
     "MirroredObstacles",
     "MovedObstacles",
+    "PosedObstacles",
     "RotatedObstacles",
     "ShiftedObstacles",
     "moved_obstacles",
@@ -66,7 +68,8 @@ class MovedObstacles(Relation):
     within ``size_tolerance`` and, for elongated boxes (length - width > 0.3 m), the heading within
     ``yaw_tolerance`` degrees modulo 180 (a box's front is not defined); and each clear
     follow-up obstacle needs its own such source obstacle (with ``exclusive=False``, any
-    such obstacle: pieces of one object may share it). With a ``scope``
+    such obstacle: pieces of one object may share it; with ``extras_judged=False`` the
+    follow-up's obstacles are not judged, only the source's kept). With a ``scope``
     (:mod:`pytest_metamorphic.lidar.judging.scope`, default the ROI) only obstacles it judges are
     clear; others are counted in ``unjudged`` details, as information.
     """
@@ -81,13 +84,16 @@ class MovedObstacles(Relation):
         boundary_margin: float,
         same_label: bool = True,
         exclusive: bool = True,
+        extras_judged: bool = True,
         scope: ScopeLike = "roi",
     ) -> None:
         self.scope: ObstacleScope = as_scope(scope)
-        for flag, setting in (("same_label", same_label), ("exclusive", exclusive)):
+        for flag, setting in (("same_label", same_label), ("exclusive", exclusive),
+                              ("extras_judged", extras_judged)):  # fmt: skip
             if not isinstance(setting, bool):
                 raise InvalidArgument(f"{flag}={setting!r} must be True or False")
         self.exclusive = exclusive
+        self.extras_judged = extras_judged
         for label, value in (
             ("center_tolerance", center_tolerance),
             ("size_tolerance", size_tolerance),
@@ -141,6 +147,8 @@ class MovedObstacles(Relation):
         xyz = None if cloud is None else cloud.xyz
         clear_expected = self._clear(expected, roi, judged_expected, xyz)
         clear_found = self._clear(found, roi, judged_found, xyz)
+        if not self.extras_judged:
+            clear_found = []
         missing = self._unmatched(expected, clear_expected, found)
         extra = self._unmatched(found, clear_found, expected)
         details = {
@@ -164,8 +172,8 @@ class MovedObstacles(Relation):
             for i in missing
         ]
         lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
-        # Rotations, the mirror and shifts move every point and add or drop none, so the
-        # follow-up holds the same scene: whatever differs was decided by the detector.
+        # Rotations, the mirror, shifts and poses move every point and add or drop none, so
+        # the follow-up holds the same scene: whatever differs was decided by the detector.
         note = (
             f" (the follow-up holds exactly the source's points, {self.moved}: any "
             "difference is the detector's)"
@@ -312,6 +320,28 @@ class ShiftedObstacles(MovedObstacles):
 
     def move_details(self, context: CheckContext) -> dict[str, Any]:
         return {"shift_x_m": self._dx(context), "shift_y_m": self._dy(context)}
+
+
+class PosedObstacles(MovedObstacles):
+    """``O'`` keeps ``O``'s road users where the sensor's new pose puts them: the
+    follow-up's ``pitch_deg``, ``roll_deg`` and ``height_m``
+    (:class:`~pytest_metamorphic.lidar.model.pose.SensorPose`; see
+    :class:`MovedObstacles` for what is compared)."""
+
+    moved = "seen from the posed sensor"
+
+    def _pose(self, context: CheckContext) -> SensorPose:
+        values = {
+            key: self._param(context, key, "sensor pose", "sensor_pose() or SensorPose")
+            for key in ("pitch_deg", "roll_deg", "height_m")
+        }
+        return SensorPose(**values)
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        return self._pose(context).move_box(box)
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        return {"pose": self._pose(context).describe()}
 
 
 _CHECKS: dict[str, type[MovedObstacles]] = {

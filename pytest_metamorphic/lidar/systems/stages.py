@@ -246,14 +246,15 @@ def _traces(
     pipeline: Any, source: Frame, followup: Frame, params: Mapping[str, Any]
 ) -> tuple[list[StageOutput], list[StageOutput]]:
     """The stages' outputs on both sides; a history follow-up (``params["history"]``, an
-    object with ``inputs(frame)``) replays as the engine ran it: the source twice, the
-    earlier sweeps, then the follow-up."""
+    object with ``inputs(frame)``) replays as the engine ran it: the follow-up's input
+    twice (the source itself for a plain history, a degraded sweep under faults), the
+    earlier sweeps, then the follow-up; "before" is then the second run."""
     history = params.get("history")
     earlier = getattr(history, "inputs", None)
     if not callable(earlier):
         return pipeline.trace(source), pipeline.trace(followup)
-    pipeline.trace(source)
-    before = pipeline.trace(source)
+    pipeline.trace(followup)
+    before = pipeline.trace(followup)
     for sweep in earlier(source):
         pipeline.trace(sweep)
     return before, pipeline.trace(followup)

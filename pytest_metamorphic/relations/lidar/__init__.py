@@ -25,7 +25,11 @@ relation                          follow-up                            expected 
 :func:`object_relocation`         one object moved nearer, farther,    found where it went (its
                                   around the sensor or turned          class), others kept
 :func:`adverse_weather`           fog or rain of 200/100/50 m          well-covered O kept
+:func:`sensor_pose`               the sensor pitched, rolled or        road users of >= 100
+                                  raised within the operating domain   returns kept where moved (*)
 :func:`history_independence`      the sweep again, after other sweeps  O == O'
+:func:`history_under_faults`      the sweep with dead lasers or lost   O == O' (its output
+                                  packets, after other sweeps          right after itself)
 ================================  ===================================  ======================
 
 (*) Cars, pedestrians and cyclists only: ``unknown`` obstacles are not judged by these.
@@ -83,7 +87,10 @@ from pytest_metamorphic.relations.lidar.geometry import (
     rotation_equivariance,
     translation_equivariance,
 )
-from pytest_metamorphic.relations.lidar.history import history_independence
+from pytest_metamorphic.relations.lidar.history import (
+    history_independence,
+    history_under_faults,
+)
 from pytest_metamorphic.relations.lidar.invariance import (
     PACKET_POINTS,
     duplication_invariance,
@@ -104,6 +111,7 @@ from pytest_metamorphic.relations.lidar.objects import (
     object_templates,
     removal_candidates,
 )
+from pytest_metamorphic.relations.lidar.pose import POSE_DIMENSIONS, sensor_pose
 from pytest_metamorphic.relations.lidar.weather import DEFAULT_VISIBILITIES, adverse_weather
 
 __all__ = [
@@ -114,6 +122,7 @@ __all__ = [
     "PACKET_DEGREES",
     "PACKET_POINTS",
     "PAPER_NOISE_SIZES",
+    "POSE_DIMENSIONS",
     "CoveredObstaclesKept",
     "MirroredObstacles",
     "MovedObstacles",
@@ -125,6 +134,7 @@ __all__ = [
     "beam_loss",
     "duplication_invariance",
     "history_independence",
+    "history_under_faults",
     "lidar_relations",
     "mirror_symmetry",
     "mr1_cardinality",
@@ -140,6 +150,7 @@ __all__ = [
     "range_quantization",
     "removal_candidates",
     "rotation_equivariance",
+    "sensor_pose",
     "translation_equivariance",
 ]
 
@@ -160,8 +171,8 @@ def lidar_relations(
     ``tolerance`` how much the outputs of equivalent inputs may differ: ``"exact"``
     (geometric pipelines) or ``"learned"`` (neural networks, whose outputs jitter: see
     :mod:`pytest_metamorphic.lidar.judging.tolerance`); ``history``: whether to include
-    :func:`history_independence` (False for a tracker or a detector that accumulates
-    sweeps on purpose: they are not per-frame).
+    :func:`history_independence` and :func:`history_under_faults` (False for a tracker
+    or a detector that accumulates sweeps on purpose: they are not per-frame).
     """
     as_scope(scope)
     if not isinstance(history, bool):
@@ -178,6 +189,10 @@ def lidar_relations(
         moved["exclusive"] = False
     same, kept, support = profile.same, profile.kept, profile.same_min_points
     place, heading = _relocation_tolerance(profile)
+    posed: dict[str, Any] = {}
+    if profile.moved is not None:  # a network's sizes, headings and classes jitter
+        posed = {"size_tolerance": max(profile.moved[1], 0.8),
+                 "yaw_tolerance": max(profile.moved[2], 20.0)}  # fmt: skip
     return [
         mr1_subset(n=noise, scope=scope, matcher=kept),
         mr1_cardinality(n=noise, scope=scope),
@@ -194,7 +209,8 @@ def lidar_relations(
         object_insertion(scope=scope, matcher=kept),
         object_relocation(scope=scope, matcher=kept, center_tolerance=place, yaw_tolerance=heading),
         adverse_weather(scope=scope),
-        *([history_independence()] if history else []),
+        sensor_pose(scope=scope, center_tolerance=place, **posed),
+        *([history_independence(), history_under_faults()] if history else []),
     ]
 
 

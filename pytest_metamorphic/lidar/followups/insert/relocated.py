@@ -43,7 +43,12 @@ class RelocatedFound(PlacedObjectCheck):
     motion, headed within ``yaw_tolerance`` degrees of it (modulo 180) when both footprints
     are elongated (the longer side at least 2.2 m and 1.5 times the shorter; other boxes
     have no heading to speak of). A turned object's class is not judged: turned, it shows
-    the sensor another outline (a cyclist turned toward it is as short as a pedestrian).
+    the sensor another outline (a cyclist turned toward it is as short as a pedestrian);
+    nor is the class of a moved object of fewer than ``class_points`` returns (100), only
+    its place: a sparse object's class rests on a few returns, and where the grids of a
+    detector cut it anew it flips (a KITTI car of 49 returns 33 m away, moved 22 degrees
+    around the sensor, was a "pedestrian" to the reference's size rules; under a pitch of
+    a few degrees the reference's cars of 36-68 returns changed class too).
 
     Sizes are not compared: the object is re-sampled at another range or angle, and a
     box fitted to the returns of one face changes length with how many rows reach its far
@@ -59,8 +64,12 @@ class RelocatedFound(PlacedObjectCheck):
         classes: ClassRule = "own_or_unknown",
         center_tolerance: float = 0.5,
         yaw_tolerance: float = 30.0,
+        class_points: int = 100,
         scope: ScopeLike = "roi",
     ) -> None:
+        if isinstance(class_points, bool) or not isinstance(class_points, int) or class_points < 0:
+            raise InvalidArgument(f"class_points={class_points!r} must be an int >= 0")
+        self.class_points = class_points
         super().__init__(
             min_points=min_points, min_detected=min_detected, min_height_share=min_height_share,
             classes=classes, scope=scope,
@@ -98,8 +107,13 @@ class RelocatedFound(PlacedObjectCheck):
         expected = relocation.expected(before)
         boxes = as_boxes(followup_output, "follow-up")
         # A turned object shows the sensor another outline (a cyclist turned toward it is
-        # as short as a pedestrian): its class is not judged, its place and heading are.
-        judged_class = before.label != "unknown" and relocation.move.kind != "turn"
+        # as short as a pedestrian), a sparse one's class flips where grids cut it anew:
+        # their class is not judged, their place and heading are.
+        judged_class = (
+            before.label != "unknown"
+            and relocation.move.kind != "turn"
+            and len(moved) >= self.class_points
+        )
         accepted = accepted_labels(before.label, self.classes if judged_class else "any")
         found = found_as(moved, boxes, accepted)
         details.update(

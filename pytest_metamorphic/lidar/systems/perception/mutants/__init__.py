@@ -54,6 +54,13 @@ temporal_ground             ground heights of each 2 m cell averaged with the pr
                             (a smoothing left on in a per-frame detector)
 long_cluster_filter         obstacles longer than 10 m dropped as walls (a size cap that also
                             drops buses and trailers: autoware_universe pull request #12738)
+level_ground                the ground taken to be the plane a level sensor at 1.73 m puts it
+                            at, not estimated (Autoware's ray_ground_filter ``sensor_height``:
+                            autoware issue #825; ghosts on a pitching car: autoware_universe
+                            issue #3673)
+stale_packets               1-degree azimuth columns without a return keep the returns they
+                            last held (a scan buffer not cleared where packets were lost:
+                            ouster-sdk issue #300)
 ==========================  =================================================================
 """
 
@@ -64,6 +71,7 @@ from pytest_metamorphic.lidar.systems.perception.mutants.ground import (
     FullCloudGround,
     FullCloudHeightCut,
     GlobalGroundPlane,
+    LevelGround,
     RoiOffByOne,
 )
 from pytest_metamorphic.lidar.systems.perception.mutants.inputs import (
@@ -73,6 +81,7 @@ from pytest_metamorphic.lidar.systems.perception.mutants.inputs import (
     RandomPointBudget,
     RepeatedRangeFilter,
     ShortRangeGate,
+    StalePackets,
     TruncatingBuffer,
     VoxelBudget,
 )
@@ -138,6 +147,8 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         SparseHeadingFlip,
         TemporalGround,
         LongClusterFilter,
+        StalePackets,
+        LevelGround,
     )
 }
 

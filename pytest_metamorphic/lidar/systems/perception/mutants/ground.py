@@ -16,7 +16,13 @@ from pytest_metamorphic.lidar.systems.perception.pipeline import (
     ReferencePerception,
 )
 
-__all__ = ["FullCloudGround", "FullCloudHeightCut", "GlobalGroundPlane", "RoiOffByOne"]
+__all__ = [
+    "FullCloudGround",
+    "FullCloudHeightCut",
+    "GlobalGroundPlane",
+    "LevelGround",
+    "RoiOffByOne",
+]
 
 
 class FullCloudGround(ReferencePerception):
@@ -77,6 +83,29 @@ class GlobalGroundPlane(ReferencePerception):
         design = np.column_stack([x, y, np.ones_like(x)])
         (a, b, c), *_ = np.linalg.lstsq(design, z, rcond=None)
         return (a * points[:, 0] + b * points[:, 1] + c).astype(np.float32)
+
+
+class LevelGround(ReferencePerception):
+    """The ground is where a level sensor at its calibrated height puts it: the plane
+    ``z = -sensor_height`` of the sensor frame (1.73 m, KITTI's mount), not estimated.
+
+    Ground filters that take the sensor's height as a parameter and the sensor as level
+    (Autoware's ``ray_ground_filter``, whose ``sensor_height`` and slopes are "essential
+    parameters to the algorithm", autowarefoundation/autoware issue #825; a crop box in
+    the sensor frame) are right on a flat road seen by a level sensor, which is what the
+    recordings and rendered streets hold. When the car's body pitches (braking, a speed
+    bump: Autoware's ``scan_ground_filter`` left ghost points in front of a car passing
+    a speed bump, autoware_universe issue #3673), the road ahead rises out of the plane
+    and joins the objects on it, or drops below it and takes their lower parts along.
+    """
+
+    name = "level_ground"
+    sensor_height = 1.73
+
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
+    ) -> NDArray[np.float32]:
+        return np.full(len(points), -self.sensor_height, dtype=np.float32)
 
 
 class RoiOffByOne(ReferencePerception):

@@ -7,6 +7,7 @@ See :mod:`pytest_metamorphic.lidar.systems.perception.mutants` for the list.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +24,7 @@ __all__ = [
     "RandomPointBudget",
     "RepeatedRangeFilter",
     "ShortRangeGate",
+    "StalePackets",
     "TruncatingBuffer",
     "VoxelBudget",
 ]
@@ -165,6 +167,41 @@ class BlindedSensorMonitor(ReferencePerception):
         sector = np.floor(np.degrees(np.arctan2(close[:, 1], close[:, 0])) / 10.0) % 36
         lit = np.bincount(sector.astype(np.intp), minlength=36) >= self.min_returns
         return points[:0] if lit.sum() >= self.min_sectors else points
+
+
+class StalePackets(ReferencePerception):
+    """Azimuth columns of ``column_degrees`` that hold no return in this sweep keep the
+    returns they last held: a scan buffer whose columns are not cleared when a packet is
+    lost.
+
+    Drivers assemble a sweep into a buffer of azimuth columns and swap it with the one
+    being filled; ouster-sdk's ``ScanBatcher`` zeroed a lost column's data but not its
+    headers, so a sweep whose first packets were dropped carried the timestamp of the
+    sweep two before (ouster-sdk issue #300). Here the data stay too: a lost packet's
+    columns are filled with what the buffer last held there. Right after the clean sweep
+    the fill restores it, so packet loss (run on each follow-up after its own source)
+    passes; after another sweep the gap holds that sweep's returns, and the obstacles of a
+    sweep with lost packets depend on what ran before it. On a sweep cut to a camera's
+    view the columns behind the car are always empty and always filled, outside the ROI.
+    """
+
+    name = "stale_packets"
+    column_degrees = 1.0
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._columns: dict[int, NDArray[np.float32]] = {}
+
+    def prepare(self, points: NDArray[np.float32]) -> NDArray[np.float32]:
+        bearing = np.degrees(np.arctan2(points[:, 1], points[:, 0])) % 360.0
+        column = (bearing // self.column_degrees).astype(np.int64)
+        order = np.argsort(column, kind="stable")
+        present, starts = np.unique(column[order], return_index=True)
+        pieces = np.split(points[order], starts[1:]) if len(points) else []
+        received = dict(zip(present.tolist(), pieces, strict=True))
+        stale = [rows for key, rows in self._columns.items() if key not in received]
+        self._columns.update(received)
+        return np.concatenate([points, *stale]) if stale else points
 
 
 def _voxel_keys(coordinates: NDArray[np.float32], size: float) -> NDArray[np.int64]:
