@@ -90,6 +90,7 @@ LEARNED_HOLDS = (
     "outside-ROI points removed",
     "points reordered",
     "the same sweep after other sweeps",
+    "a degraded sweep (lasers dead or packets lost) after other sweeps",
 )
 
 

@@ -79,10 +79,19 @@ def corridor_roi(
     return ROI.from_roads([_Path(points, width)], raster_range=raster_range)
 
 
+_SENSOR_RANGE = 120.0  # metres: the noise relations' default max_range (the HDL-64E's)
+
+
 def whole_sweep_roi(*, radius: float = 100.0) -> ROI:
     """Every obstacle within ``radius`` metres of the sensor is judged (a square of side
     ``2 * radius``): the explicit choice for a recording without a map, when the
-    detector is expected to keep every obstacle under the transforms."""
+    detector is expected to keep every obstacle under the transforms.
+
+    The bitmap reaches past the sensor's range (120 m, the noise relations' default) so
+    that "outside" is defined wherever noise can go: with ``radius=100`` MR1's noise
+    lands beyond the square (100-120 m, in its corners and beyond its sides); with a
+    radius of 120 m or more nothing lies outside within range, and the noise relations
+    report that they tested nothing, with the reason."""
     radius = _positive(radius, "radius")
     corners = [(-radius, -radius), (radius, -radius), (radius, radius), (-radius, radius)]
-    return ROI.from_polygons([corners], raster_range=radius + 1.0)
+    return ROI.from_polygons([corners], raster_range=max(radius, _SENSOR_RANGE) + 1.0)

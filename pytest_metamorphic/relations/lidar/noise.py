@@ -50,18 +50,28 @@ NoiseSize = int | Sequence[int] | None
 
 
 def _noise(n: NoiseSize, max_size: int) -> Any:
-    """Follow-up strategy: noise outside the ROI, as many points as ``n`` says."""
-    if n is None:
-        return lambda frame: noise_outside_roi(_frame(frame), min_size=1, max_size=max_size)
-    sizes = (n,) if isinstance(n, int) else tuple(n)
+    """Follow-up strategy: noise outside the ROI, as many points as ``n`` says; not
+    applicable, with the reason, where the ROI leaves no room outside it within the
+    sensor's range (an ROI over the whole sweep: nothing to test, and said so)."""
+    sizes = None if n is None else (n,) if isinstance(n, int) else tuple(n)
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         frame = _frame(frame)
         noise = NoiseOutsideROI.prepare(frame)  # no ROI, empty frame: fail now
+        if len(noise.cells) == 0:
+            return st.just(Followup.not_applicable(frame, _NO_ROOM.format(noise.max_range)))
         noise.from_seeds([0])
+        if sizes is None:
+            return noise_outside_roi(frame, min_size=1, max_size=max_size)
         return st.sampled_from(sizes).flatmap(lambda size: _chunked_noise(frame, noise, size))
 
     return followup
+
+
+_NO_ROOM = (
+    "noise outside the ROI: the ROI leaves no room outside it within {:g} m of the sensor "
+    "(it covers the whole sweep), so there is nothing to add the noise to"
+)
 
 
 def _chunked_noise(

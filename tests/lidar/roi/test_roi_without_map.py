@@ -129,3 +129,49 @@ def test_a_hostile_lanelet2_file_is_refused_by_name(tmp_path: Path) -> None:
     os.mkfifo(fifo)
     with pytest.raises(DataError, match=r"map\.fifo"):
         read_lanelet2(fifo)
+
+
+
+WHOLE_SWEEP_MR1 = """
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+from pytest_metamorphic import metamorphic
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.roi import whole_sweep_roi
+from pytest_metamorphic.lidar.systems.perception import ReferencePerception
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
+from pytest_metamorphic.relations.lidar import mr1_subset
+
+ROI = whole_sweep_roi(radius=RADIUS)
+CAR = Obstacle(Box((12.0, -2.5, -0.98), (4.3, 1.8, 1.5), 0.35, "car"))
+SWEEP = render(Scene(roi=ROI, obstacles=(CAR,), name="street"))
+
+
+@settings(max_examples=2, derandomize=True, database=None, deadline=None,
+          suppress_health_check=list(HealthCheck))
+@metamorphic(source=st.just(Frame(SWEEP.cloud, roi=ROI)), relations=[mr1_subset()])
+def test_mr1(frame):
+    return ReferencePerception()(frame)
+"""
+
+
+@pytest.mark.parametrize("radius", [100.0, 130.0])
+def test_the_whole_sweep_roi_runs_mr1_and_says_when_it_tested_nothing(
+    pytester: pytest.Pytester, radius: float
+) -> None:
+    # docs/your-recordings.md's route: whole_sweep_roi(radius=100) with MR1 crashed on the
+    # bitmap's range (101 m < 120 m) and radius=130 on "no room". Within the sensor's
+    # 120 m, radius=100 leaves room beyond the square for the noise; 130 leaves none, and
+    # MR1 reports that it tested nothing, with the reason.
+    pytester.makepyfile(test_mt=WHOLE_SWEEP_MR1.replace("RADIUS", repr(radius)))
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    if radius < 120:
+        result.assert_outcomes(passed=1)
+        assert "NOTHING TESTED" not in result.stdout.str()
+        return
+    result.assert_outcomes(passed=1, warnings=1)
+    result.stdout.fnmatch_lines(
+        ["*tested nothing: no follow-up could be made (noise outside the ROI: the ROI leaves "
+         "no room outside it within 120 m*", "*NOTHING TESTED by 1 relation(s)*"]
+    )  # fmt: skip
