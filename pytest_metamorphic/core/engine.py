@@ -68,6 +68,7 @@ from pytest_metamorphic.core.search_phase import counts_as_new_case
 from pytest_metamorphic.core.stats import (
     DEFAULT_MINIMIZE_BUDGET,
     DEFAULT_MINIMIZE_SECONDS,
+    UNJUDGED,
     current_recorder,
 )
 from pytest_metamorphic.core.timeout import call_isolated, call_with_timeout, check_timeout
@@ -230,7 +231,7 @@ class _Runner:
                 context = CheckContext(case.source, item.input, item.params, index)
                 verdict = mr.relation.check(compared, output, context)
                 if stats:
-                    _count_tested(stats, mr, case.source, item, verdict)
+                    _count_tested(stats, mr, case.source, item, verdict, recorder)
                 if not verdict.holds:
                     if not item.before:  # a history's violation is itself a re-run's
                         self._confirm_deterministic(case, source_output, fixtures, mr, stats)
@@ -249,10 +250,8 @@ class _Runner:
         relation: str,
         stats: Any,
     ) -> Any:
-        """For a follow-up with earlier inputs: its input's output right after that input
-        (run twice: the source for a plain history, a degraded sweep under faults; a
-        failing case replays alike), then the earlier inputs, in order (outputs
-        discarded). ``_NO_HISTORY`` for any other follow-up."""
+        """A history's baseline: its input run twice (the source, or a degraded sweep), then
+        the earlier inputs in order; ``_NO_HISTORY`` for any other follow-up."""
         __tracebackhide__ = True
         if not item.before:
             return _NO_HISTORY
@@ -559,10 +558,11 @@ _NO_HISTORY = object()  # a follow-up without earlier inputs
 
 
 def _count_tested(
-    stats: Any, mr: MetamorphicRelation, source: Any, followup: Followup, verdict: Verdict
-) -> None:
-    """What one follow-up tested: judged elements, an unchanged input (a follow-up with a
-    history changed what ran before it), unjudged changes."""
+    stats: Any, mr: MetamorphicRelation, source: Any, followup: Followup, verdict: Verdict,
+    recorder: Any,
+) -> None:  # fmt: skip
+    """What one follow-up tested: judged elements (a check's first reason for judging
+    none), an unchanged input (not for a history), unjudged changes."""
     if unjudged_changes(verdict):
         stats.unjudged_changes += 1
     judged = judged_count(verdict)
@@ -570,6 +570,9 @@ def _count_tested(
         stats.counted += 1
         stats.judged += judged
         stats.judged_followups += judged > 0
+        why = verdict.details.get("unjudged_reason") if verdict.details else None
+        if why and not judged and recorder is not None:
+            recorder.reasons.setdefault(mr.name + UNJUDGED, str(why))
     if not followup.before and mr.unchanged(source, followup.input):
         stats.unchanged += 1
 

@@ -13,7 +13,19 @@ from contextvars import ContextVar
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-__all__ = ["Recorder", "RelationStats", "current_recorder", "nothing_tested", "recording"]
+__all__ = [
+    "UNJUDGED",
+    "Recorder",
+    "RelationStats",
+    "current_recorder",
+    "nothing_tested",
+    "reasons_of",
+    "recording",
+]
+
+UNJUDGED = " (judged none)"
+"""Suffix of a relation's name in :attr:`Recorder.reasons` under which the first reason a
+check gave for judging nothing (``details["unjudged_reason"]``) is kept."""
 
 DEFAULT_FOLLOWUPS = 2
 DEFAULT_MINIMIZE_BUDGET = 500
@@ -77,12 +89,13 @@ class RelationStats:
 _FIELDS = frozenset(RelationStats.__dataclass_fields__)
 
 
-def nothing_tested(stats: RelationStats, reason: str = "") -> str | None:
+def nothing_tested(stats: RelationStats, reason: str = "", unjudged: str = "") -> str | None:
     """Why a relation tested nothing over a whole test, or None when it tested something.
 
     Nothing was tested when every follow-up was not applicable (``reason``: the
     transform's), when every follow-up run equalled its source, or when the checks said
-    how many obstacles they judged and that was none.
+    how many obstacles they judged and that was none (``unjudged``: why, when a check
+    said).
     """
     ran = stats.followups
     if ran == 0 and stats.not_applicable:
@@ -90,8 +103,14 @@ def nothing_tested(stats: RelationStats, reason: str = "") -> str | None:
     if ran and stats.unchanged == ran:
         return f"every follow-up ({ran}) equalled its source"
     if stats.counted and stats.counted == ran and stats.judged == 0:
-        return f"no obstacle (element) was judged in {ran} follow-up(s)"
+        why = f": {unjudged}" if unjudged else ""
+        return f"no obstacle (element) was judged in {ran} follow-up(s){why}"
     return None
+
+
+def reasons_of(reasons: dict[str, str], relation: str) -> tuple[str, str]:
+    """``(reason, unjudged)`` for :func:`nothing_tested` from a recorder's ``reasons``."""
+    return reasons.get(relation, ""), reasons.get(relation + UNJUDGED, "")
 
 
 @dataclass

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from pytest_metamorphic.core.errors import NothingTestedWarning
-from pytest_metamorphic.core.stats import Recorder, nothing_tested, recording
+from pytest_metamorphic.core.stats import Recorder, nothing_tested, reasons_of, recording
 from pytest_metamorphic.core.tracebacks import explain_the_users_code, start_at_the_users_test
 from pytest_metamorphic.plugin.campaigns import (
     CAMPAIGN_PROPERTY,
@@ -221,7 +221,7 @@ def _report_nothing_tested(recorder: Recorder, strict: bool) -> None:
     __tracebackhide__ = True
     lines = []
     for name, stats in recorder.relations.items():
-        reason = nothing_tested(stats, recorder.reasons.get(name, ""))
+        reason = nothing_tested(stats, *reasons_of(recorder.reasons, name))
         if reason is not None:
             lines.append(f"relation {name!r} tested nothing: {reason}")
     if not lines:

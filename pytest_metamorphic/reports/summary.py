@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pytest_metamorphic.core.stats import Recorder, RelationStats, nothing_tested
+from pytest_metamorphic.core.stats import Recorder, RelationStats, nothing_tested, reasons_of
 
 __all__ = ["PROPERTY", "SessionSummary", "junit_properties"]
 
@@ -33,7 +33,7 @@ def junit_properties(recorder: Recorder) -> list[tuple[str, object]]:
     for name, stats in recorder.relations.items():
         for column in (*COLUMNS, "nondeterministic", SCOPE_COLUMN, *TESTED_COLUMNS):
             properties.append((f"mt.{name}.{column}", getattr(stats, column)))
-        reason = nothing_tested(stats, recorder.reasons.get(name, ""))
+        reason = nothing_tested(stats, *reasons_of(recorder.reasons, name))
         if reason is not None:
             properties.append((f"mt.{name}.nothing_tested", reason))
     return properties
@@ -51,7 +51,7 @@ class TestSummary:
 
     def nothing_tested(self, relation: str) -> str | None:
         """Why ``relation`` tested nothing in this test, or None."""
-        return nothing_tested(self.relations[relation], self.reasons.get(relation, ""))
+        return nothing_tested(self.relations[relation], *reasons_of(self.reasons, relation))
 
     @property
     def sut_calls(self) -> int:

@@ -99,3 +99,42 @@ def test_real(x):
     )
     result = pytester.runpytest("-W", "error::UserWarning")
     result.assert_outcomes(passed=1)
+
+
+UNKNOWN_ONLY = """
+import numpy as np
+from hypothesis import HealthCheck, settings, strategies as st
+from pytest_metamorphic import metamorphic
+from pytest_metamorphic.lidar.model.cloud import PointCloud
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.obstacles import Box
+from pytest_metamorphic.lidar.roi import ROI
+from pytest_metamorphic.relations.lidar import mirror_symmetry, rotation_equivariance
+
+ROAD = ROI.from_polygons([[(-30, -10), (30, -10), (30, 10), (-30, 10)]])
+CLOUD = PointCloud(np.random.default_rng(0).uniform(-20, 20, size=(2000, 3)))
+
+
+@settings(max_examples=2, database=None, deadline=None, suppress_health_check=list(HealthCheck))
+@metamorphic(source=st.just(Frame(CLOUD, roi=ROAD)),
+             relations=[rotation_equivariance(), mirror_symmetry()])
+def test_unknown_only(frame):
+    return [Box((5.0, 1.0, 0.0), (1.0, 1.0, 1.5), 0.0, "unknown")]
+"""
+
+
+def test_a_detector_of_unknown_obstacles_is_told_why_turns_judged_nothing(
+    pytester: pytest.Pytester,
+) -> None:
+    # First contact: a detector that labels everything "unknown" was told "no obstacle was
+    # judged" by rotation and mirror, not why (they judge road-user classes only).
+    pytester.makepyfile(test_mt=UNKNOWN_ONLY)
+    result = pytester.runpytest("-p", "no:cacheprovider", "--mt-report=report.json")
+    result.assert_outcomes(passed=1, warnings=1)
+    result.stdout.fnmatch_lines(
+        ["*no obstacle (element) was judged in * follow-up(s): every obstacle in scope (2) "
+         "was 'unknown', and this relation judges only cars, pedestrians and cyclists*"]
+    )  # fmt: skip
+    report = json.loads((pytester.path / "report.json").read_text())
+    reasons = [r["nothing_tested"] for r in report["tests"][0]["relations"].values()]
+    assert all("'unknown'" in reason for reason in reasons), reasons

@@ -164,6 +164,9 @@ class MovedObstacles(Relation):
             "blamed": [],
             "unjudged_source": [int(i) for i in np.flatnonzero(~judged_expected)],
         }
+        if not clear_expected and not clear_found:
+            details["unjudged_reason"] = self._why_unjudged(expected, found, judged_expected,
+                                                            judged_found)  # fmt: skip
         if not missing and not extra:
             return Verdict(True, self.name, details=details)
         lines = [
@@ -182,6 +185,30 @@ class MovedObstacles(Relation):
         details["missing"] = [expected[i].describe() for i in missing]
         details["extra"] = [found[j].describe() for j in extra]
         return Verdict(False, self.name, "; ".join(lines[:10]) + note, details)
+
+    def _why_unjudged(
+        self,
+        expected: Sequence[Box],
+        found: Sequence[Box],
+        judged_expected: NDArray[np.bool_],
+        judged_found: NDArray[np.bool_],
+    ) -> str:
+        """Why no obstacle was clear enough to judge (the NOTHING TESTED line says it)."""
+        in_scope = [b for b, j in zip(expected, judged_expected, strict=True) if j]
+        in_scope += [b for b, j in zip(found, judged_found, strict=True) if j]
+        if not in_scope:
+            return f"no obstacle in scope ({self.scope.describe()}) on either side"
+        if all(box.label == "unknown" for box in in_scope):
+            return (
+                f"every obstacle in scope ({len(in_scope)}) was 'unknown', and this relation "
+                "judges only cars, pedestrians and cyclists: report road-user classes (map "
+                "your detector's to car, pedestrian and cyclist), or rely on the relations "
+                "that judge every class (the invariances, beam and packet loss, weather)"
+            )
+        return (
+            f"no road user in scope had >= {self.min_points} returns and lay "
+            f"{self.boundary_margin:g} m inside the ROI's edge"
+        )
 
     def _diagnosis(self, moved: Box, found: Sequence[Box], followup: Any) -> str:
         """How a lost obstacle came out: where its points went (per follow-up obstacle)

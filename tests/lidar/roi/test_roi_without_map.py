@@ -131,7 +131,6 @@ def test_a_hostile_lanelet2_file_is_refused_by_name(tmp_path: Path) -> None:
         read_lanelet2(fifo)
 
 
-
 WHOLE_SWEEP_MR1 = """
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
