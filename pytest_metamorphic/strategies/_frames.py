@@ -5,15 +5,25 @@ index: cheap, and every "nothing to draw" problem is reported right there), then
 frames only when Hypothesis draws them, keeping the last few in a small LRU cache.
 Frames are drawn by index with ``st.integers(0, n - 1)``, so failures shrink toward the
 first frame of the recording.
+
+A relative path is looked for beside the file that calls ``frames()`` first (a test
+file's data lives next to it, as pytest's own ``request.path`` and data-folder plugins
+have it), then in the working directory: ``frames("recordings/*.pcd")`` in
+``tests/test_perception.py`` finds ``tests/recordings/`` whether pytest runs from the
+repository root (as CI does) or from ``tests/``. The error names both folders.
 """
 
 from __future__ import annotations
 
+import glob
 import os
+import sys
+from pathlib import Path
 from typing import Any, Literal
 
 from hypothesis import strategies as st
 
+from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.io._common import ZerosPolicy
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy
@@ -49,6 +59,9 @@ def frames(
       * any other folder: its sorted ``*.bin``, ``*.pcd`` and bag files;
       * a single cloud file;
       * a glob pattern (``**`` allowed), e.g. ``"data/*/velodyne/*.bin"``.
+
+      Relative to the folder of the file that calls ``frames()`` (your test file) when
+      it matches there, else to the working directory.
     topic : str, optional
       PointCloud2 topic for bags (default: the bag's only PointCloud2 topic).
     roi : object, optional
@@ -75,7 +88,27 @@ def frames(
       A bag cannot be read, has no such topic, or the topic holds no PointCloud2 (the
       message lists the topics there are).
     """
-    catalog = FrameCatalog(
+    try:
+        where = _beside_caller(path_or_glob, _calling_file())
+    except TypeError:
+        where = path_or_glob  # not a path: FrameCatalog names the argument
+    try:
+        catalog = _catalog(where, topic, roi, labels, nonfinite, zeros, cache_size)
+    except InvalidArgument as error:
+        raise _searched(error, path_or_glob) from None
+    return st.integers(0, len(catalog) - 1).map(catalog.load)
+
+
+def _catalog(
+    path_or_glob: Any,
+    topic: str | None,
+    roi: Any,
+    labels: bool | Literal["auto"],
+    nonfinite: NonFinitePolicy,
+    zeros: ZerosPolicy,
+    cache_size: int,
+) -> FrameCatalog:
+    return FrameCatalog(
         path_or_glob,
         topic=topic,
         roi=roi,
@@ -84,4 +117,43 @@ def frames(
         zeros=zeros,
         cache_size=cache_size,
     )
-    return st.integers(0, len(catalog) - 1).map(catalog.load)
+
+
+_PACKAGE = Path(__file__).resolve().parent.parent
+
+
+def _calling_file() -> Path | None:
+    """The file of the first caller outside this package (the user's test module)."""
+    frame = sys._getframe(1)
+    while frame is not None:
+        name = frame.f_globals.get("__file__")
+        if name and not Path(name).resolve().is_relative_to(_PACKAGE):
+            return Path(name).resolve()
+        frame = frame.f_back  # type: ignore[assignment]
+    return None
+
+
+def _beside_caller(path_or_glob: Any, caller: Path | None) -> Any:
+    """``path_or_glob`` beside ``caller`` when it is relative and matches there."""
+    text = os.fspath(path_or_glob)
+    if caller is None or os.path.isabs(text):
+        return path_or_glob
+    beside = caller.parent / text
+    if beside.exists() or glob.glob(str(beside), recursive=True):
+        return str(beside)
+    return path_or_glob
+
+
+def _searched(error: InvalidArgument, path_or_glob: Any) -> InvalidArgument:
+    """``error`` naming the folders a relative path was looked for in, when nothing
+    matched (the message says "no such file")."""
+    try:
+        text = os.fspath(path_or_glob)
+    except TypeError:
+        return error
+    if "no such file" not in str(error) or os.path.isabs(text):
+        return error
+    caller = _calling_file()
+    folders = [str(caller.parent)] if caller is not None else []
+    folders.append(f"the working directory {Path.cwd()}")
+    return InvalidArgument(f"{error} (looked in {' and in '.join(folders)})")

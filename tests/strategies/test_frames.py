@@ -139,3 +139,40 @@ def test_frames_work_as_a_metamorphic_source(shared_data):
         return int(np.count_nonzero(np.hypot(*frame.cloud.xy.T) < 100))
 
     test_points_near_the_car()
+
+
+RELATIVE = """
+from hypothesis import given, settings
+from pytest_metamorphic import strategies as mst
+
+SWEEPS = mst.frames("recordings/*.pcd")
+
+
+@settings(max_examples=2, database=None)
+@given(SWEEPS)
+def test_draws(frame):
+    assert len(frame.cloud) == 200
+"""
+
+
+def test_a_relative_path_is_found_beside_the_test_file(pytester: pytest.Pytester) -> None:
+    # First contact: mst.frames("recordings/*.pcd"), as the first tutorial writes it,
+    # stopped collection when pytest ran from the repository root, naming no folder.
+    from pytest_metamorphic.lidar.io import write_pcd
+
+    (pytester.path / "tests" / "recordings").mkdir(parents=True)
+    cloud = PointCloud(np.random.default_rng(0).normal(size=(200, 3)).astype(np.float32))
+    write_pcd(cloud, pytester.path / "tests" / "recordings" / "a.pcd")
+    (pytester.path / "tests" / "test_mine.py").write_text(RELATIVE)
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "tests")
+    result.assert_outcomes(passed=1)
+    # From the tests folder itself, as before.
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", str(pytester.path / "tests"))
+    result.assert_outcomes(passed=1)
+    # Nowhere: the error names both folders it looked in.
+    (pytester.path / "tests" / "test_mine.py").write_text(RELATIVE.replace("recordings", "nope"))
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "tests")
+    result.stdout.fnmatch_lines(
+        [f"*no such file or folder, and no glob match (looked in {pytester.path / 'tests'} and "
+         f"in the working directory {pytester.path})*"]
+    )  # fmt: skip
