@@ -37,7 +37,8 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 import conftest
-from pytest_metamorphic import MetamorphicViolation, metamorphic
+from pytest_metamorphic import Followup, MetamorphicRelation, MetamorphicViolation, metamorphic
+from pytest_metamorphic.lidar.followups.faults import DropRings
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box, Label
@@ -45,7 +46,7 @@ from pytest_metamorphic.lidar.model.sensors import OS1_128, VLP16
 from pytest_metamorphic.lidar.roi import corridor_roi
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
-from pytest_metamorphic.relations.lidar import lidar_relations, mr1_subset
+from pytest_metamorphic.relations.lidar import CoveredObstaclesKept, lidar_relations, mr1_subset
 
 DATA = conftest.SHARED_DATA
 RECORDINGS = {
@@ -136,15 +137,44 @@ def rendered_frames() -> tuple[Frame, ...]:
     return tuple(render(scene, beams=sensor) for scene in scenes for sensor in (VLP16, OS1_128))
 
 
+# Dead lasers are not claimed for this detector on a VLP-16: its ground is each 2 m
+# cell's lowest return, and a cell whose only ground returns came from the lost laser
+# takes its ground from the object standing in it (the next test).
+CLAIMED = [r for r in lidar_relations() if not r.name.startswith("beams missing")]
+
+
 @settings(max_examples=4, database=None, deadline=None, derandomize=True,
           suppress_health_check=LIDAR)  # fmt: skip
 @metamorphic(
     source=st.deferred(lambda: st.sampled_from(rendered_frames())),
-    relations=lidar_relations(),
+    relations=CLAIMED,
     followups=1,
 )
 def test_my_detector_on_rendered_scenes_of_other_sensors(frame: Frame) -> list[Box]:
     return my_detector(frame)
+
+
+def test_a_dead_laser_lifts_my_detectors_ground_into_an_object() -> None:
+    # A real weakness of a cell-minimum ground, found by the search above: on street 7
+    # rendered with a VLP-16, laser 4 held the only ground returns of the 2 m cells
+    # around an obstacle 13.5 m behind the car (their lowest return rises from -1.65 m to
+    # -1.19 m without it), so the obstacle's lower part becomes "ground" and it shrinks
+    # from 4.7 m to 2.3 m, though it keeps all its returns.
+    dead = DropRings((4,))
+    relation = MetamorphicRelation(
+        "laser 4 dead => well-covered obstacles kept",
+        lambda frame: st.just(Followup(dead.apply(frame), dead.params())),
+        CoveredObstaclesKept(),
+    )
+
+    @settings(max_examples=1, database=None, phases=[Phase.generate], deadline=None,
+              suppress_health_check=LIDAR)  # fmt: skip
+    @metamorphic(source=st.just(rendered_frames()[2]), relations=[relation], followups=1)
+    def check(frame: Frame) -> list[Box]:
+        return my_detector(frame)
+
+    with pytest.raises(MetamorphicViolation, match=r"unknown at \(-13\.\d, -0\.\d\) lost"):
+        check()
 
 
 #: A realistic fault: ground cells of 8 m instead of 2 m. A cell that straddles the road's
