@@ -8,7 +8,7 @@ the source *and* the transform parameters.
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -114,12 +114,19 @@ class MetamorphicRelation:
         Whether a follow-up input equals its source (a follow-up that changed nothing
         tests nothing; the report counts them). Without it, only the very same object
         counts as unchanged.
+    coverage : callable(context, source_output, followup_output, verdict), optional
+        The cells (strings) of the operating domain one checked follow-up reached
+        (``"distance: 0-5 m"``, ``"pose: pitch 2-3°"``), counted per relation and
+        reported, so that a run shows which cells it never reached (the LiDAR relations
+        have one:
+        :func:`~pytest_metamorphic.lidar.judging.coverage.domain_cells`).
     """
 
     name: str
     followup: Callable[[Any], SearchStrategy[Any]]
     relation: Relation
     same_input: Callable[[Any, Any], bool] | None = None
+    coverage: Callable[[Any, Any, Any, Any], Iterable[str]] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -133,10 +140,10 @@ class MetamorphicRelation:
                 else f"relation={self.relation!r} of {self.name!r} must be a Relation, "
                 "e.g. relations.equal() or relations.predicate(fn)"
             )
-        if self.same_input is not None and not callable(self.same_input):
-            raise InvalidArgument(
-                f"same_input={self.same_input!r} of {self.name!r} must be callable"
-            )
+        for hook in ("same_input", "coverage"):
+            value = getattr(self, hook)
+            if value is not None and not callable(value):
+                raise InvalidArgument(f"{hook}={value!r} of {self.name!r} must be callable")
 
     def unchanged(self, source: Any, followup: Any) -> bool:
         """Whether ``followup`` is ``source`` or, by :attr:`same_input`, equal to it."""

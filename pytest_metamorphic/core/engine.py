@@ -57,20 +57,14 @@ from pytest_metamorphic.core.errors import (
     SystemUnderTestCrash,
 )
 from pytest_metamorphic.core.reduction import Reduction, reduce_followup
-from pytest_metamorphic.core.relations import (
-    CheckContext,
-    Relation,
-    Verdict,
-    judged_count,
-    unjudged_changes,
-)
+from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.core.search_phase import counts_as_new_case
 from pytest_metamorphic.core.stats import (
     DEFAULT_MINIMIZE_BUDGET,
     DEFAULT_MINIMIZE_SECONDS,
-    UNJUDGED,
     current_recorder,
 )
+from pytest_metamorphic.core.tested import count_tested
 from pytest_metamorphic.core.timeout import call_isolated, call_with_timeout, check_timeout
 from pytest_metamorphic.core.tracebacks import raise_at_definition
 from pytest_metamorphic.core.violations import (
@@ -231,7 +225,8 @@ class _Runner:
                 context = CheckContext(case.source, item.input, item.params, index)
                 verdict = mr.relation.check(compared, output, context)
                 if stats:
-                    _count_tested(stats, mr, case.source, item, verdict, recorder)
+                    count_tested(stats, mr, item, verdict, recorder, context=context,
+                                 outputs=(compared, output))  # fmt: skip
                 if not verdict.holds:
                     if not item.before:  # a history's violation is itself a re-run's
                         self._confirm_deterministic(case, source_output, fixtures, mr, stats)
@@ -555,26 +550,6 @@ def metamorphic(
 
 
 _NO_HISTORY = object()  # a follow-up without earlier inputs
-
-
-def _count_tested(
-    stats: Any, mr: MetamorphicRelation, source: Any, followup: Followup, verdict: Verdict,
-    recorder: Any,
-) -> None:  # fmt: skip
-    """What one follow-up tested: judged elements (a check's first reason for judging
-    none), an unchanged input (not for a history), unjudged changes."""
-    if unjudged_changes(verdict):
-        stats.unjudged_changes += 1
-    judged = judged_count(verdict)
-    if judged is not None:
-        stats.counted += 1
-        stats.judged += judged
-        stats.judged_followups += judged > 0
-        why = verdict.details.get("unjudged_reason") if verdict.details else None
-        if why and not judged and recorder is not None:
-            recorder.reasons.setdefault(mr.name + UNJUDGED, str(why))
-    if not followup.before and mr.unchanged(source, followup.input):
-        stats.unchanged += 1
 
 
 def _case_digest(case: MetamorphicCase | None) -> str:

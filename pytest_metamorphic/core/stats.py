@@ -47,6 +47,8 @@ class RelationStats:
     the part spent on the earlier inputs of history follow-ups (``Followup.before``).
     ``unjudged_changes`` counts follow-ups whose output changed only outside what the
     relation judges (obstacles outside the ROI scope): information, never violations.
+    ``coverage`` counts, per cell of the operating domain (``"distance: 0-5 m"``), the
+    follow-ups that reached it (the relation's ``coverage`` function says which).
 
     What was tested: ``judged`` sums the elements (obstacles) the checks judged, over the
     ``counted`` follow-ups whose verdict says how many (``details["judged"]``), of which
@@ -73,17 +75,27 @@ class RelationStats:
     judged_followups: int = 0
     unchanged: int = 0
     not_applicable: int = 0
+    coverage: dict[str, int] = field(default_factory=dict)
 
     def add(self, other: RelationStats) -> None:
         for name, value in asdict(other).items():
-            setattr(self, name, getattr(self, name) + value)
+            if name == "coverage":
+                for cell, count in value.items():
+                    self.coverage[cell] = self.coverage.get(cell, 0) + count
+            else:
+                setattr(self, name, getattr(self, name) + value)
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> RelationStats:
         """From :func:`dataclasses.asdict` output (keys this version does not know ignored,
         missing ones 0: reports of other versions merge)."""
-        known = {name: int(value) for name, value in data.items() if name in _FIELDS}
-        return cls(**known)
+        known = {
+            name: int(value)
+            for name, value in data.items()
+            if name in _FIELDS and name != "coverage"
+        }
+        cells = data.get("coverage") or {}
+        return cls(**known, coverage={str(k): int(v) for k, v in dict(cells).items()})
 
 
 _FIELDS = frozenset(RelationStats.__dataclass_fields__)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.stats import Recorder, RelationStats, nothing_tested, reasons_of
+from pytest_metamorphic.lidar.judging.coverage import unreached
 
 __all__ = ["PROPERTY", "SessionSummary", "junit_properties"]
 
@@ -177,6 +178,7 @@ class SessionSummary:
                 "out of scope: follow-ups whose output changed only outside what the relation "
                 "judges (obstacles outside the ROI scope); information, not violations"
             )
+        lines += self._coverage_lines()
         nothing = [row for row in rows if row["nothing_tested"]]
         if nothing:
             lines.append(
@@ -185,6 +187,36 @@ class SessionSummary:
             lines += [
                 f"  {row['test']} :: {row['relation']}: {row['nothing_tested']}" for row in nothing
             ]
+        return lines
+
+    def _coverage_lines(self) -> list[str]:
+        """The bands of the operating domain some relation's follow-ups never reached,
+        each with the relations that left it out (counts per band: the JSON report)."""
+        reached: dict[str, dict[str, int]] = {}
+        for test in self.tests.values():
+            for name, stats in test.relations.items():
+                cells = reached.setdefault(name, {})
+                for cell, count in stats.coverage.items():
+                    cells[cell] = cells.get(cell, 0) + count
+        reached = {name: cells for name, cells in reached.items() if cells}
+        gaps: dict[str, list[str]] = {}
+        for name, cells in reached.items():
+            for line in unreached(cells):
+                dimension, bands = line.split(": ", 1)
+                for band in bands.removeprefix("none ").split(", none "):
+                    gaps.setdefault(f"{dimension} {band}", []).append(name)
+        if not gaps:
+            return []
+        lines = [
+            "operating domain not reached (a band no follow-up of these relations judged or "
+            "placed an object in; counts per band in the --mt-report JSON, 'coverage'):"
+        ]
+        for band, names in gaps.items():
+            if len(names) == len(reached) > 1:
+                lines.append(f"  {band}: none of the {len(names)} relations")
+                continue
+            more = f"; and {len(names) - 3} more" if len(names) > 3 else ""
+            lines.append(f"  {band}: {len(names)} relation(s): {'; '.join(names[:3])}{more}")
         return lines
 
     @staticmethod

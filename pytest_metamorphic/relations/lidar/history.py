@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from pytest_metamorphic.core.engine import Followup, MetamorphicRelation
 from pytest_metamorphic.core.matching import Matcher
 from pytest_metamorphic.lidar.judging.scope import judged_equal
-from pytest_metamorphic.relations.lidar._common import _PROBE, _check_size, _frame
+from pytest_metamorphic.relations.lidar._common import _PROBE, _check_size, _frame, coverage_of
 from pytest_metamorphic.strategies._history import (
     HISTORY_FAULTS,
     HistoryFault,
@@ -53,7 +53,9 @@ def history_independence(
         return earlier_sweeps(_frame(frame), max_steps=max_steps)
 
     # The follow-up *is* its source: it tests the history, not the input.
-    return MetamorphicRelation(name, followup, relation, same_input=_never_same)
+    return MetamorphicRelation(
+        name, followup, relation, same_input=_never_same, coverage=coverage_of(relation)
+    )
 
 
 def _never_same(source: Any, followup: Any) -> bool:
@@ -106,4 +108,4 @@ def history_under_faults(
             max_packets=max_packets,
         )
 
-    return MetamorphicRelation(name, followup, relation)
+    return MetamorphicRelation(name, followup, relation, coverage=coverage_of(relation))
