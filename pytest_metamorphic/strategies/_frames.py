@@ -93,30 +93,18 @@ def frames(
     except TypeError:
         where = path_or_glob  # not a path: FrameCatalog names the argument
     try:
-        catalog = _catalog(where, topic, roi, labels, nonfinite, zeros, cache_size)
+        catalog = FrameCatalog(
+            where,
+            topic=topic,
+            roi=roi,
+            labels=labels,
+            nonfinite=nonfinite,
+            zeros=zeros,
+            cache_size=cache_size,
+        )
     except InvalidArgument as error:
         raise _searched(error, path_or_glob) from None
     return st.integers(0, len(catalog) - 1).map(catalog.load)
-
-
-def _catalog(
-    path_or_glob: Any,
-    topic: str | None,
-    roi: Any,
-    labels: bool | Literal["auto"],
-    nonfinite: NonFinitePolicy,
-    zeros: ZerosPolicy,
-    cache_size: int,
-) -> FrameCatalog:
-    return FrameCatalog(
-        path_or_glob,
-        topic=topic,
-        roi=roi,
-        labels=labels,
-        nonfinite=nonfinite,
-        zeros=zeros,
-        cache_size=cache_size,
-    )
 
 
 _PACKAGE = Path(__file__).resolve().parent.parent
