@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -126,14 +126,10 @@ def replay_inputs(
     :class:`~pytest_metamorphic.lidar.followups.history.EarlierSweeps`) runs after those
     inputs, as it did in the test, and is compared with its own input's output right
     after that input (the source's for a plain history)."""
-    source_output = system(source)
     earlier = getattr(followup.params.get("history"), "earlier_inputs", None)
-    history = list(earlier(source)) if callable(earlier) else list(followup.before)
-    if history:  # as the engine: the follow-up's input right after itself, then the history
-        system(followup.input)
-        source_output = system(followup.input)
-        for value in history:
-            system(value)
+    history = tuple(earlier(source)) if callable(earlier) else tuple(followup.before)
+    # As the engine: a history's input right after itself, then the history.
+    source_output = replace(followup, before=history).compared_output(system, system(source))
     followup_output = system(followup.input)
     index = int(artifact.record.get("followup_index", 0))
     context = CheckContext(source, followup.input, followup.params, index)

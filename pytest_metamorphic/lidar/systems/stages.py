@@ -42,6 +42,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from pytest_metamorphic.core.cases import Followup
 from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import matched_pairs
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
@@ -253,11 +254,8 @@ def _traces(
     earlier = getattr(history, "inputs", None)
     if not callable(earlier):
         return pipeline.trace(source), pipeline.trace(followup)
-    pipeline.trace(followup)
-    before = pipeline.trace(followup)
-    for sweep in earlier(source):
-        pipeline.trace(sweep)
-    return before, pipeline.trace(followup)
+    replayed = Followup(followup, before=tuple(earlier(source)))
+    return replayed.compared_output(pipeline.trace, None), pipeline.trace(followup)
 
 
 @dataclass(frozen=True)
