@@ -32,7 +32,11 @@ The defaults are figures of real passenger cars and roads, each with its source:
 * **near field** 5 m: the first metres around the car, where self-filters, blind-zone
   handling and minimum ranges live (a passenger car is about 4.4 x 1.8 m, its sensor
   over the middle of its roof: a bumper is 2-2.5 m from the sensor);
-* **far field**: up to the sensor's own maximum range (the sensor's catalogue entry).
+* **far field**: up to the sensor's own maximum range (the sensor's catalogue entry);
+* **the car itself** 4.4 x 1.8 m with the sensor over its middle: a mid-size passenger
+  car (KITTI's VW Passat B6 is 4.77 x 1.82 m, its Velodyne 0.27 m behind the roof's
+  middle; a Golf is 4.26 x 1.79 m). Nothing can stand inside it, so near-field
+  placements keep 0.3 m clear of it.
 """
 
 from __future__ import annotations
@@ -85,6 +89,9 @@ class OperatingDomain:
         Bird's-eye distance from the sensor within which an object is in the near field.
     max_range_m : float or None
         The farthest distance objects are placed at; None: the sensor's own maximum range.
+    ego_size_m : (length, width) float
+        The car carrying the sensor, centred under it: no object is placed within 0.3 m
+        of it.
     """
 
     pitch_deg: tuple[float, float] = (-3.0, 3.0)
@@ -93,6 +100,7 @@ class OperatingDomain:
     grade_percent: tuple[float, float] = (-8.0, 8.0)
     near_field_m: float = 5.0
     max_range_m: float | None = None
+    ego_size_m: tuple[float, float] = (4.4, 1.8)
 
     def __post_init__(self) -> None:
         for name, limit in (("pitch_deg", 15.0), ("roll_deg", 15.0), ("height_m", 1.0),
@@ -107,6 +115,16 @@ class OperatingDomain:
             if not (math.isfinite(value) and value > 0):
                 raise InvalidArgument(f"{name}={value!r} must be a number of metres > 0")
             object.__setattr__(self, name, float(value))
+        ego = self.ego_size_m
+        if (
+            isinstance(ego, (str, bytes)) or not isinstance(ego, Sequence) or len(ego) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) and 0 < v <= 30 for v in ego)
+        ):  # fmt: skip
+            raise InvalidArgument(
+                f"ego_size_m={ego!r} must be the car's (length, width) in metres, each 0-30"
+            )
+        object.__setattr__(self, "ego_size_m", (float(ego[0]), float(ego[1])))
 
     def describe(self) -> str:
         """One line, e.g. for a report: the ranges this domain varies."""

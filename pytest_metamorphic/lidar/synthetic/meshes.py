@@ -18,10 +18,11 @@ from pytest_metamorphic.lidar.synthetic.description import (
     BACKGROUND_INSTANCE,
     GROUND_INSTANCE,
     MeshShape,
+    Obstacle,
     Scene,
 )
 
-__all__ = ["SceneMesh", "scene_mesh"]
+__all__ = ["SceneMesh", "obstacle_geometry", "scene_mesh"]
 
 
 def _hull(points: Sequence[Sequence[float]]) -> trimesh.Trimesh:
@@ -165,21 +166,31 @@ class SceneMesh:
     groups: tuple[tuple[int, int], ...]
 
 
+def obstacle_geometry(
+    obstacle: Obstacle,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], float]:
+    """An obstacle's mesh in its own coordinates (x along its heading, y to its left, z up
+    from its underside), scaled to its box, and its reflectivity."""
+    if isinstance(obstacle.shape, MeshShape):
+        unit, faces = obstacle.shape.unit_geometry()
+        default = _REFLECTIVITY["box"]
+    else:
+        unit, faces = _builtin_shape(obstacle.shape_name)
+        default = _REFLECTIVITY[obstacle.shape_name]
+    reflectivity = default if obstacle.reflectivity is None else obstacle.reflectivity
+    return _place(unit, obstacle.box.size, 0.0, (0.0, 0.0, 0.0)), faces, reflectivity
+
+
 def scene_mesh(scene: Scene, *, ground_extent: float = 130.0) -> SceneMesh:
     """Build the triangle meshes of a scene (obstacles, background, ground square)."""
     ground_z = -scene.sensor_height
     pieces: list[tuple[NDArray[np.float64], NDArray[np.int64], int, float]] = []
     for index, obstacle in enumerate(scene.obstacles):
         box = obstacle.box
-        if isinstance(obstacle.shape, MeshShape):
-            unit, faces = obstacle.shape.unit_geometry()
-            default = _REFLECTIVITY["box"]
-        else:
-            unit, faces = _builtin_shape(obstacle.shape_name)
-            default = _REFLECTIVITY[obstacle.shape_name]
-        bottom = (box.center[0], box.center[1], box.bottom_z)
-        vertices = _place(unit, box.size, box.yaw, bottom)
-        reflectivity = default if obstacle.reflectivity is None else obstacle.reflectivity
+        local, faces, reflectivity = obstacle_geometry(obstacle)
+        c, s = math.cos(box.yaw), math.sin(box.yaw)
+        rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        vertices = local @ rotation.T + np.array([box.center[0], box.center[1], box.bottom_z])
         pieces.append((vertices, faces, index, reflectivity))
     for item in scene.background:
         unit, faces = _background_shape(item.kind)

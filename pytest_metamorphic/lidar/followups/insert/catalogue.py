@@ -23,7 +23,14 @@ from pytest_metamorphic.lidar.followups.insert.template import ObjectTemplate, o
 from pytest_metamorphic.lidar.model.obstacles import Box, Label
 from pytest_metamorphic.lidar.roi import ROI
 
-__all__ = ["CLASS_SIZES", "ROAD_USERS", "SCALES", "fits_class", "road_user_templates"]
+__all__ = [
+    "CLASS_SIZES",
+    "ROAD_USERS",
+    "SCALES",
+    "fits_class",
+    "road_user_templates",
+    "solid_road_users",
+]
 
 SCALES = (1.0, 1.05, 0.95, 1.1, 0.9)
 """Scales an inserted object may take (semLidarFuzz scales vehicles by 105 %), first the
@@ -114,6 +121,31 @@ def road_user_templates() -> tuple[ObjectTemplate, ...]:
     template = ObjectTemplate.from_frame(frame, whole)
     named.append(dataclasses.replace(template, source="road users#0 [row of parked cars]"))
     return tuple(sorted(named, key=lambda t: t.range))
+
+
+@functools.cache
+def solid_road_users() -> tuple[ObjectTemplate, ...]:
+    """The road users of :data:`ROAD_USERS` as whole meshes (solid templates,
+    :meth:`~pytest_metamorphic.lidar.followups.insert.ObjectTemplate.from_mesh`): what the
+    near field needs. A recording's template holds the faces one sensor saw from several
+    metres away; a metre or two from the car the sensor looks down onto its roof and
+    shoulders, and beams would pass through the roof the template lacks to ground inside
+    the object. Each keeps its name in its source (``rendered road users [bus]``)."""
+    from pytest_metamorphic.lidar.synthetic import Obstacle
+    from pytest_metamorphic.lidar.synthetic.meshes import obstacle_geometry
+
+    templates = []
+    for name, (x, y), size, _, label in ROAD_USERS:
+        box = Box((0.0, 0.0, size[2] / 2), size, 0.0, label)  # type: ignore[arg-type]
+        obstacle = Obstacle(box, shape="box" if size[0] > 6 else "auto")
+        vertices, faces, reflectivity = obstacle_geometry(obstacle)
+        templates.append(
+            ObjectTemplate.from_mesh(
+                vertices, faces, label=obstacle.label, reflectivity=reflectivity,
+                source=f"rendered road users [{name}]", seen_range=math.hypot(x, y),
+            )  # fmt: skip
+        )
+    return tuple(templates)
 
 
 def _parked_row(ground: float) -> list[Box]:

@@ -94,6 +94,37 @@ class _TargetGround:
             return None
         return float(np.median(self.xyz[inside, 2]))
 
+    @functools.cached_property
+    def nearest_ground(self) -> float | None:
+        """The height of the nearest ground the sensor sees: the median height of the
+        non-solid returns within 3 m beyond the nearest of them (None: none within 15 m).
+        Within the first metres a sensor sees no ground at all (the car and the lowest
+        beam's angle hide it: an HDL-64E 1.73 m up meets the road 3.7 m out at the
+        earliest), so a near-field placement stands on this, on the premise that the road
+        under the car is as high as the road just beyond it."""
+        planar = np.hypot(self.xyz[:, 0], self.xyz[:, 1])
+        ground = ~self.solid & (planar < 15.0)
+        if not ground.any():
+            return None
+        first = float(planar[ground].min())
+        return float(np.median(self.xyz[ground & (planar < first + 3.0), 2]))
+
+    def blind_ground_under(self, box: Box) -> float | None:
+        """The ground height under ``box`` in the near field, where the sensor sees no
+        ground: :attr:`nearest_ground`, when no solid return lies in the footprint grown
+        by 0.5 m and the footprint holds fewer ground returns than :meth:`ground_under`
+        needs (where it holds enough, that is the height); None otherwise."""
+        seen = self.ground_under(box)
+        if seen is not None:
+            return seen
+        reach = math.hypot(box.size[0], box.size[1]) / 2 + _FREE_MARGIN
+        near = np.asarray(self.tree.query_ball_point(box.center[:2], reach), dtype=np.intp)
+        if len(near):
+            inside = near[footprint_distances(self.xyz[near], [box.grown(_FREE_MARGIN)]) == 0]
+            if self.solid[inside].any() or len(inside) >= 5:
+                return None
+        return self.nearest_ground
+
     def in_clear_view(self, box: Box) -> bool:
         """Whether at most 2 solid returns lie between the sensor and ``box`` (within the
         bearings its footprint covers): it is not placed behind something."""
@@ -197,6 +228,11 @@ def free_ground(frame: Frame, box: Box, *, scope: ScopeLike = "roi") -> float | 
     if z is None or not ground.in_clear_view(box) or not as_scope(scope).judged([box], frame)[0]:
         return None
     return z
+
+
+def ground_of(frame: Frame) -> _TargetGround:
+    """``frame``'s local ground and solid returns (cached for the last 8 frames)."""
+    return _ground_of(frame)
 
 
 @functools.lru_cache(maxsize=8)

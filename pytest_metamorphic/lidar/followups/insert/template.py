@@ -61,6 +61,11 @@ class ObjectTemplate:
         Radians between neighbouring returns of the sensor that saw it (azimuth,
         elevation): each return stands for a patch of surface that size (see
         :meth:`mesh_at`).
+    solid : bool
+        Whether ``vertices`` and ``faces`` are a whole closed surface (a rendered road
+        user's mesh, :meth:`from_mesh`) rather than the faces a sensor saw: it may be
+        placed at any range and turned to any heading, the near field included, where a
+        sensor looks down onto roofs and shoulders no recording's template holds.
     """
 
     label: Label
@@ -73,6 +78,38 @@ class ObjectTemplate:
     bearing: float
     source: str = ""
     spacing: tuple[float, float] = (_AZIMUTH_SPACING, _ELEVATION_SPACING)
+    solid: bool = False
+
+    @classmethod
+    def from_mesh(
+        cls,
+        vertices: NDArray[np.float64],
+        faces: NDArray[np.int64],
+        *,
+        label: Label,
+        reflectivity: float,
+        source: str,
+        seen_range: float = 10.0,
+    ) -> ObjectTemplate:
+        """A whole closed surface as a template (``solid``): ``vertices`` (k, 3) in object
+        coordinates (x along the heading, y to the left, z up from the ground), ``faces``
+        (m, 3). Every return cast onto it gets intensity ``reflectivity``; ``seen_range``
+        is where :func:`free_placements` starts from (as the range a template was seen
+        from)."""
+        v = np.asarray(vertices, dtype=np.float64)
+        f = np.asarray(faces, dtype=np.int64)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 4 or f.ndim != 2 or f.shape[1] != 3:
+            raise InvalidArgument(
+                f"a solid template needs (k, 3) vertices and (m, 3) faces, got {v.shape}, "
+                f"{f.shape}"
+            )
+        low, high = v.min(axis=0), v.max(axis=0)
+        size = (float(high[0] - low[0]), float(high[1] - low[1]), float(high[2]))
+        return cls(
+            label=label, size=size, vertices=v, faces=f,
+            intensity=np.full(len(v), reflectivity, dtype=np.float32),
+            view=0.0, range=float(seen_range), bearing=0.0, source=source, solid=True,
+        )  # fmt: skip
 
     @classmethod
     def from_frame(cls, frame: Frame, box: Box, *, margin: float = 0.15) -> ObjectTemplate:
@@ -151,8 +188,11 @@ class ObjectTemplate:
         return SceneMesh(world, faces, np.zeros(m, np.int32), np.zeros(m), ((0, m),))
 
     def _splatted(self) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-        """Vertices and faces with a square patch (two triangles) added per return."""
+        """Vertices and faces with a square patch (two triangles) added per return
+        (none for a solid template: its faces are the whole surface)."""
         v = self.vertices
+        if self.solid:
+            return v, self.faces
         # Where the sensor stood, in object coordinates: the beam to each return.
         c, s = math.cos(self.view), math.sin(self.view)
         sensor = np.array([-self.range * c, self.range * s])
@@ -207,6 +247,8 @@ class ObjectTemplate:
         return Path(path).name + bracket + rest
 
     def describe(self) -> str:
+        if self.solid:
+            return f"{self.label}, a whole mesh ({self.origin})"
         return (
             f"{self.label} seen at {self.range:.1f} m ({len(self.vertices)} returns, {self.origin})"
         )

@@ -1,0 +1,173 @@
+"""Where in the operating domain an object is placed: as seen, in the near field, far out.
+
+:func:`~pytest_metamorphic.lidar.followups.insert.free_placements` keeps an object near the
+range it was seen from (80-150 %), so a recording's templates never reach the first metres
+around the car nor the sensor's far limit, and the faults that live there (self-filters,
+blind-zone handling, cluster-size caps, range cut-offs) are never triggered.
+:func:`domain_placements` adds two bands of the
+:class:`~pytest_metamorphic.lidar.model.domain.OperatingDomain`:
+
+* ``"near field"``: a whole road user (a solid template,
+  :func:`~pytest_metamorphic.lidar.followups.insert.catalogue.solid_road_users`) as close
+  to the car as it can stand, 0.3 m clear of the car's own footprint
+  (``ego_size_m``), on every side (24 bearings) and both ways round (along the bearing
+  and across it), wholly within ``near_field_m``. An object longer than the near field (a
+  lorry, a bus) cannot fit in it: it is placed as close, its near end within it, and
+  holds tens of thousands of returns (dense). A template cut from a recording is never
+  placed there: it holds the faces a sensor saw metres away, and from a metre or two the
+  sensor looks down onto the roof it lacks;
+* ``"far field"``: any template from 60 % to 90 % of the far limit (``max_range_m``, by
+  default the sensor's own range), every 5 degrees, on ground the sensor sees there.
+
+Ground under a near-field placement is the nearest ground the sensor sees
+(:attr:`~pytest_metamorphic.lidar.followups.insert.placement._TargetGround.nearest_ground`):
+the road under the car is taken to be as high as just beyond it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+
+from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.followups.insert.placement import free_placements, ground_of
+from pytest_metamorphic.lidar.followups.insert.template import ObjectTemplate, Placement
+from pytest_metamorphic.lidar.judging.scope import ScopeLike, as_scope
+from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
+from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.hdl64 import HDL64E, BeamLayout
+from pytest_metamorphic.lidar.model.obstacles import Box, footprint_distances
+
+__all__ = ["REACHES", "Reach", "domain_placements", "ego_box"]
+
+Reach = Literal["as seen", "near field", "far field"]
+REACHES: tuple[Reach, ...] = ("as seen", "near field", "far field")
+"""The bands, in the order Hypothesis shrinks toward (first: near where it was seen)."""
+
+_EGO_CLEARANCE = 0.3  # metres between a placed footprint and the car's own
+_NEAR_BEARINGS = 24  # every 15 degrees
+_FAR_STEP = 5.0  # degrees between far-field bearings
+_FAR_SHARES = (0.6, 0.7, 0.8, 0.9)  # of the far limit
+
+
+def ego_box(domain: OperatingDomain = DEFAULT_DOMAIN) -> Box:
+    """The car carrying the sensor, as a box centred under it (bird's eye)."""
+    length, width = domain.ego_size_m
+    return Box((0.0, 0.0, 0.0), (length, width, 1.5), 0.0, "car")
+
+
+def _outline(box: Box, step: float = 0.1) -> np.ndarray:
+    """(n, 2) points along ``box``'s footprint edges, ``step`` metres apart."""
+    corners = box.corners_bev()
+    points = []
+    for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
+        count = max(2, int(math.ceil(np.linalg.norm(b - a) / step)) + 1)
+        points.append(np.linspace(a, b, count))
+    return np.concatenate(points)
+
+
+def _gap(a: Box, b: Box) -> float:
+    """Bird's-eye gap between two footprints, 0 when they overlap (edges sampled both
+    ways: two crossing boxes need not hold a corner of each other)."""
+    return float(
+        min(
+            footprint_distances(_outline(a), [b]).min(),
+            footprint_distances(_outline(b), [a]).min(),
+        )
+    )
+
+
+def _near_candidates(
+    template: ObjectTemplate, domain: OperatingDomain
+) -> list[tuple[float, Placement]]:
+    """(order key, placement at ground 0) in the near field: per bearing and way round,
+    from as close to the car as ``template`` stands outward in 0.25 m steps while it stays
+    wholly within the near field (an object longer than the near field: while its near
+    end does), ordered closest and straightest ahead first."""
+    ego = ego_box(domain)
+    limit = domain.near_field_m
+    long = template.size[0] > limit
+    found = []
+    for step in range(_NEAR_BEARINGS):
+        bearing = math.remainder(2 * math.pi * step / _NEAR_BEARINGS, 2 * math.pi)
+        for turn in (0.0, math.pi / 2):
+            closest = None
+            for quarter in range(2, int(limit * 4) + 40):
+                placement = Placement(bearing, quarter / 4, 0.0, turn)
+                box = template.box_at(placement)
+                if closest is None:
+                    if _gap(box, ego) < _EGO_CLEARANCE:
+                        continue
+                    closest = placement.range
+                reach = np.hypot(*box.corners_bev().T)
+                if float(reach.min() if long else reach.max()) > limit:
+                    break
+                key = abs(bearing) + turn / 10 + 4 * (placement.range - closest)
+                found.append((key, placement))
+    return sorted(found, key=lambda item: item[0])
+
+
+def domain_placements(
+    frame: Frame,
+    template: ObjectTemplate,
+    *,
+    reach: Reach,
+    domain: OperatingDomain = DEFAULT_DOMAIN,
+    scope: ScopeLike = "roi",
+    layout: BeamLayout = HDL64E,
+    limit: int = 32,
+) -> list[Placement]:
+    """Up to ``limit`` free places for ``template`` in ``frame`` within ``reach`` (module
+    docstring), each on free ground (no return more than 0.3 m above the local ground in
+    the footprint grown by 0.5 m), in clear view and judged by ``scope``.
+
+    ``"as seen"`` is :func:`free_placements`; ``"near field"`` takes solid templates only
+    (any other gives none) and orders its places from straight ahead round to behind;
+    ``"far field"`` goes from the nearest share of the far limit outward."""
+    if not isinstance(frame, Frame):
+        raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
+    if not isinstance(template, ObjectTemplate):
+        raise InvalidArgument(f"template={template!r} must be an ObjectTemplate")
+    if reach not in REACHES:
+        raise InvalidArgument(f"reach={reach!r} must be one of {REACHES}")
+    if not isinstance(domain, OperatingDomain):
+        raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
+    if reach == "as seen":
+        return free_placements(frame, template, scope=scope, layout=layout, limit=limit)
+    chosen = as_scope(scope)
+    ground = ground_of(frame)
+    if reach == "near field":
+        if not template.solid:
+            return []
+        candidates = [placement for _, placement in _near_candidates(template, domain)]
+        stand = ground.blind_ground_under
+    else:
+        far = layout.max_range if domain.max_range_m is None else domain.max_range_m
+        far = min(far, layout.max_range)
+        steps = int(180 / _FAR_STEP)
+        candidates = [
+            Placement(
+                math.remainder(template.bearing + math.radians(turn * _FAR_STEP), 2 * math.pi),
+                share * far,
+                0.0,
+            )
+            for share in _FAR_SHARES
+            if share * far > max(domain.near_field_m, layout.min_range + 2.0)
+            for turn in sorted(range(-steps, steps), key=abs)
+        ]
+        stand = ground.ground_under
+    found: list[Placement] = []
+    for candidate in candidates:
+        probe = template.box_at(candidate)
+        z = stand(probe)
+        if z is None or not ground.in_clear_view(probe):
+            continue
+        placement = Placement(candidate.bearing, candidate.range, z, candidate.turn)
+        if not chosen.judged([template.box_at(placement)], frame)[0]:
+            continue
+        found.append(placement)
+        if len(found) == limit:
+            break
+    return found
