@@ -31,8 +31,10 @@ from pytest_metamorphic.lidar.followups.insert.catalogue import (
     SCALES,
     fits_class,
     road_user_templates,
+    solid_road_users,
 )
 from pytest_metamorphic.lidar.followups.insert.placement import free_ground
+from pytest_metamorphic.lidar.followups.insert.reach import REACHES, Reach, domain_placements
 from pytest_metamorphic.lidar.followups.insert.relocation import (
     MOVE_KINDS,
     Movable,
@@ -41,6 +43,7 @@ from pytest_metamorphic.lidar.followups.insert.relocation import (
 )
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.frame import Frame
+from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.model.sensors import frame_sensor
@@ -48,7 +51,7 @@ from pytest_metamorphic.strategies._noise import _check_frame
 
 __all__ = ["inserted_objects", "relocated_objects", "removed_objects"]
 
-_Options = list[tuple[ObjectTemplate, list[Placement]]]
+_Options = list[tuple[Reach, list[tuple[ObjectTemplate, list[Placement]]]]]
 # Free places per frame and options: the search reads the whole cloud once per frame.
 _PLACES: weakref.WeakKeyDictionary[Frame, dict[tuple[Any, ...], _Options]] = (
     weakref.WeakKeyDictionary()
@@ -94,21 +97,33 @@ def inserted_objects(
     min_returns: int = 30,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
+    reach: Sequence[Reach] = REACHES,
+    domain: OperatingDomain = DEFAULT_DOMAIN,
 ) -> st.SearchStrategy[Followup]:
     """The frame with one of ``objects`` (default: its own cars, pedestrians and cyclists
     of >= ``min_returns`` returns,
     :func:`~pytest_metamorphic.lidar.followups.insert.object_templates`, and with
     ``road_users`` the built-in rendered ones of every size, a child to an articulated
     lorry, :func:`~pytest_metamorphic.lidar.followups.insert.catalogue.road_user_templates`)
-    scaled by one of ``scales`` where the result is a real size of its class
-    (:data:`~pytest_metamorphic.lidar.followups.insert.catalogue.CLASS_SIZES`) and still
-    fits the place, put on free ground judged by ``scope``, in clear view, re-cast with
-    ``layout``'s beams (default: the frame's sensor,
-    :func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`)
-    (:class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`). Shrinks toward the
-    first object, the smallest move from where it was seen and the first scale (1). Not
-    applicable (and reported so) when there is no object to insert or the frame's sensor
-    is unknown."""
+    put on free ground judged by ``scope``, in clear view, re-cast with ``layout``'s beams
+    (default: the frame's sensor, :func:`~pytest_metamorphic.lidar.model.sensors.frame_sensor`)
+    (:class:`~pytest_metamorphic.lidar.followups.insert.InsertObject`), in one of the
+    ``reach`` bands of ``domain``
+    (:func:`~pytest_metamorphic.lidar.followups.insert.reach.domain_placements`):
+
+    * ``"as seen"``: 80-150 % of the range it was seen from, scaled by one of ``scales``
+      where the result is a real size of its class
+      (:data:`~pytest_metamorphic.lidar.followups.insert.catalogue.CLASS_SIZES`) and still
+      fits the place;
+    * ``"near field"``: the built-in road users as whole meshes
+      (:func:`~pytest_metamorphic.lidar.followups.insert.catalogue.solid_road_users`,
+      with ``road_users``; solid templates among ``objects``) within the first metres on
+      every side of the car, lorries and buses with their near end there (dense);
+    * ``"far field"``: any of them 60-90 % of the way to the far limit.
+
+    Shrinks toward the first band, the first object, the smallest move from where it was
+    seen and the first scale (1). Not applicable (and reported so) when there is no object
+    to insert or the frame's sensor is unknown."""
     frame = _check_frame(frame)
     if layout is not None and not isinstance(layout, BeamLayout):
         raise InvalidArgument(f"layout={layout!r} must be a BeamLayout or None (the frame's)")
@@ -125,27 +140,29 @@ def inserted_objects(
     if not isinstance(road_users, bool):
         raise InvalidArgument(f"road_users={road_users!r} must be True or False")
     factors = _scales(scales)
+    reaches = _reaches(reach)
+    if not isinstance(domain, OperatingDomain):
+        raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
 
     def insertions() -> st.SearchStrategy[Followup]:
         beams = layout if layout is not None else frame_sensor(frame).sensor
         if not isinstance(beams, BeamLayout):
             return st.just(Followup.not_applicable(frame, _no_beams(frame)))
-        key = (templates, road_users, min_returns, chosen, id(beams))
+        key = (templates, road_users, min_returns, chosen, id(beams), reaches, domain)
 
-        def insert(template: ObjectTemplate, placement: Placement, factor: float) -> Followup:
-            template, placement = _scaled(frame, template, placement, factor, chosen)
+        def insert(
+            band: Reach, template: ObjectTemplate, placement: Placement, factor: float
+        ) -> Followup:
+            if band == "as seen":
+                template, placement = _scaled(frame, template, placement, factor, chosen)
             insertion = InsertObject.onto(frame, template, placement, layout=beams)
-            return Followup(insertion.apply(frame), params=insertion.params())
+            return Followup(insertion.apply(frame), params={**insertion.params(), "reach": band})
 
         cache = _PLACES.setdefault(frame, {})
         if key not in cache:
-            found = list(
-                templates or object_templates(frame, min_returns=min_returns, scope=chosen)
+            cache[key] = _insertion_options(
+                frame, templates, road_users, min_returns, chosen, beams, reaches, domain
             )
-            if road_users and templates is None:
-                found += road_user_templates()
-            places = [(t, free_placements(frame, t, scope=chosen, layout=beams)) for t in found]
-            cache[key] = [(t, p) for t, p in places if p]
         options = cache[key]
         if not options:
             reason = (
@@ -157,16 +174,57 @@ def inserted_objects(
             )
             return st.just(Followup.not_applicable(frame, reason))
 
-        def place(index: int) -> st.SearchStrategy[Followup]:
-            template, places = options[index]
+        def place(band: Reach, index: int, chosen: list[Any]) -> st.SearchStrategy[Followup]:
+            template, places = chosen[index]
             return st.tuples(st.sampled_from(places), st.sampled_from(factors)).map(
-                lambda drawn: insert(template, *drawn)
+                lambda drawn: insert(band, template, *drawn)
             )
 
-        return st.integers(0, len(options) - 1).flatmap(place)
+        def pick(option: tuple[Reach, list[Any]]) -> st.SearchStrategy[Followup]:
+            band, chosen = option
+            return st.integers(0, len(chosen) - 1).flatmap(lambda i: place(band, i, chosen))
+
+        return st.sampled_from(options).flatmap(pick)
 
     # Places are searched when the first example is drawn, not when the strategy is made.
     return st.deferred(insertions)
+
+
+def _reaches(reach: Sequence[Reach]) -> tuple[Reach, ...]:
+    chosen = tuple(reach) if not isinstance(reach, str) else ()
+    if not chosen or any(band not in REACHES for band in chosen) or len(set(chosen)) < len(chosen):
+        raise InvalidArgument(f"reach={reach!r} must be distinct bands of {REACHES}")
+    return chosen
+
+
+def _insertion_options(
+    frame: Frame,
+    templates: tuple[ObjectTemplate, ...] | None,
+    road_users: bool,
+    min_returns: int,
+    scope: ObstacleScope,
+    beams: BeamLayout,
+    reaches: tuple[Reach, ...],
+    domain: OperatingDomain,
+) -> _Options:
+    """Per band, the templates with free places in it (bands with none left out)."""
+    found = list(templates or object_templates(frame, min_returns=min_returns, scope=scope))
+    if road_users and templates is None:
+        found += road_user_templates()
+    solid = [t for t in found if t.solid]
+    if road_users and templates is None:
+        solid += solid_road_users()
+    options: _Options = []
+    for band in reaches:
+        pool = solid if band == "near field" else found
+        places = [
+            (t, domain_placements(frame, t, reach=band, domain=domain, scope=scope, layout=beams))
+            for t in pool
+        ]
+        kept = [(t, p) for t, p in places if p]
+        if kept:
+            options.append((band, kept))
+    return options
 
 
 def _scales(scales: Sequence[float]) -> tuple[float, ...]:

@@ -16,10 +16,13 @@ from pytest_metamorphic.lidar.followups.insert import (
     object_templates,
 )
 from pytest_metamorphic.lidar.followups.insert.catalogue import SCALES
+from pytest_metamorphic.lidar.followups.insert.reach import REACHES, Reach
 from pytest_metamorphic.lidar.followups.insert.relocated import RelocatedFound
 from pytest_metamorphic.lidar.followups.insert.relocation import MOVE_KINDS, MoveKind
 from pytest_metamorphic.lidar.judging.found import ClassRule
 from pytest_metamorphic.lidar.judging.scope import ScopeLike
+from pytest_metamorphic.lidar.judging.well_seen import WellSeen
+from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
 from pytest_metamorphic.relations.lidar._common import _PROBE, _frame, lidar_relation
 from pytest_metamorphic.strategies._edits import (
@@ -79,9 +82,12 @@ def object_insertion(
     min_points: int = 30,
     min_detected: float = 0.5,
     classes: ClassRule = "own_or_unknown",
+    well_seen: WellSeen | None = WellSeen(),
     matcher: Matcher | None = None,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
+    reach: Sequence[Reach] = REACHES,
+    domain: OperatingDomain = DEFAULT_DOMAIN,
     name: str = "an object inserted => it is detected and the others kept",
 ) -> MetamorphicRelation:
     """A real object put on free ground in the ROI is detected, and nothing else is lost
@@ -96,7 +102,12 @@ def object_insertion(
     ``scope`` and in clear view
     (:func:`~pytest_metamorphic.lidar.followups.insert.free_placements`),
     re-projected onto ``layout``'s beams (default: the frame's sensor), hiding what it
-    stands in front of. Shrinking goes toward the first object and the smallest move from
+    stands in front of. Where it goes covers the operating domain (``reach`` bands of
+    ``domain``, :mod:`~pytest_metamorphic.lidar.followups.insert.reach`): near the range
+    it was seen from, in the near field (the built-in road users as whole meshes, within
+    the first 5 m on every side of the car; lorries and buses with their near end there,
+    tens of thousands of returns), and far out (60-90 % of the sensor's range).
+    Shrinking goes toward the first band, the first object and the smallest move from
     where it was seen; a violation reduces to the fewest inserted returns that still fail.
     An unlabelled recording has no objects of its own: the built-in road users are
     inserted, or pass ``objects`` (templates cut from any labelled recording or rendered
@@ -108,7 +119,9 @@ def object_insertion(
     The check is :class:`~pytest_metamorphic.lidar.followups.insert.InsertedDetected` (an inserted
     object with >= ``min_points`` returns has >= ``min_detected`` of them in follow-up
     obstacles of its class, or ``"unknown"``: ``classes``, under either tolerance profile;
-    an inserted pedestrian reported as a car is a violation) and
+    an inserted pedestrian reported as a car is a violation; a well-seen pedestrian or
+    cyclist reported as ``"unknown"`` is one too, ``well_seen``,
+    :class:`~pytest_metamorphic.lidar.judging.well_seen.WellSeen`) and
     :class:`~pytest_metamorphic.lidar.followups.edit.OthersKept` (judged source obstacles
     >= ``clearance`` metres from it and not behind it keep their match).
 
@@ -123,12 +136,13 @@ def object_insertion(
     far placements finds.
     """
     check = InsertedDetected(
-        min_points=min_points, min_detected=min_detected, classes=classes, scope=scope
-    )
+        min_points=min_points, min_detected=min_detected, classes=classes,
+        well_seen=well_seen, scope=scope,
+    )  # fmt: skip
     relation = check & OthersKept(clearance=clearance, matcher=matcher, scope=scope)
     options: dict[str, Any] = {
         "objects": objects, "road_users": road_users, "scales": scales,
-        "min_returns": min_points, "layout": layout,
+        "min_returns": min_points, "layout": layout, "reach": reach, "domain": domain,
     }  # fmt: skip
     inserted_objects(_PROBE, **options)  # validate now
 

@@ -29,6 +29,8 @@ from pytest_metamorphic.lidar.followups.insert import (
 from pytest_metamorphic.lidar.followups.insert.catalogue import fits_class, road_user_templates
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
+from pytest_metamorphic.lidar.judging.well_seen import WellSeen
+from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.model.sensors import frame_sensor
 from pytest_metamorphic.lidar.roi import corridor_roi
 from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
@@ -302,7 +304,11 @@ def test_an_inserted_pedestrian_reported_as_a_car_is_a_violation() -> None:
     verdict = check.check(reference(frame), as_cars(reference(followup)), context)
     assert not verdict.holds and "is found as a car, not a pedestrian" in verdict.explanation
     as_unknown = [dataclasses.replace(b, label="unknown") for b in reference(followup)]
-    assert check.check([], as_unknown, context).holds  # not called anything else
+    # Not called anything else: accepted, unless it was well seen (617 returns, head to
+    # foot, standing apart): then "unknown" is a pedestrian demoted.
+    assert InsertedDetected(well_seen=None).check([], as_unknown, context).holds
+    demoted = check.check([], as_unknown, context)
+    assert not demoted.holds and "demoted" in demoted.explanation
     assert not InsertedDetected(classes="own").check([], as_unknown, context).holds
     assert InsertedDetected(classes="any").check([], as_cars(reference(followup)), context).holds
     with pytest.raises(InvalidArgument, match="classes="):
@@ -383,3 +389,29 @@ def test_road_users_seen_from_close_by_fit_where_a_short_recording_sees_ground()
     close = [t for t in road_user_templates() if "close by" in t.source]
     assert sorted(t.label for t in close) == ["car", "cyclist", "pedestrian"]
     assert all(4.0 < t.range < 7.0 and fits_class(t.size, t.label) for t in close)
+
+
+def test_a_well_seen_pedestrian_is_not_demoted_by_a_far_fragment_or_a_merge() -> None:
+    """What "well seen" separates: the same pedestrian's unknown obstacle is a demotion
+    when it holds the pedestrian alone, not when it took in something a metre beside it
+    (a merge: its class describes the merged thing), and a pedestrian of 60 returns or a
+    child of 1.15 m is not well seen."""
+    seen = WellSeen()
+    person = Box((7.0, 0.0, -1.0), (0.6, 0.5, 1.75), 0.0, "pedestrian")
+    rng = np.random.default_rng(0)
+    local = rng.uniform(-0.5, 0.5, (400, 3)) * np.array([0.6, 0.5, 1.7])
+    returns = local + np.array([7.0, 0.0, -1.0])
+    assert seen.applies(person, returns)
+    assert not seen.applies(person, returns[:60])  # a far fragment
+    assert not seen.applies(dataclasses.replace(person, label="car"), returns)
+    child = dataclasses.replace(person, size=(0.4, 0.35, 1.15), center=(7.0, 0.0, -1.2))
+    assert not seen.applies(child, returns)
+    alone = dataclasses.replace(person, label="unknown")
+    assert seen.demoted(person, returns, [alone])
+    assert not seen.demoted(person, returns, [person])
+    merged = Box((7.0, 1.0, -1.0), (0.8, 2.6, 1.8), 0.0, "unknown")  # reaches 1 m beyond it
+    assert not seen.demoted(person, returns, [merged])
+    with pytest.raises(InvalidArgument, match="min_returns"):
+        WellSeen(min_returns=0)
+    with pytest.raises(InvalidArgument, match="min_height_share"):
+        WellSeen(min_height_share=2.0)

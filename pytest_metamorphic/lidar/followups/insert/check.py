@@ -15,6 +15,7 @@ from pytest_metamorphic.lidar.judging.found import (
     found_as,
 )
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
+from pytest_metamorphic.lidar.judging.well_seen import WellSeen
 from pytest_metamorphic.lidar.model.obstacles import as_boxes
 
 __all__ = ["InsertedDetected", "PlacedObjectCheck"]
@@ -65,6 +66,11 @@ class InsertedDetected(PlacedObjectCheck):
     lowest returns of a car 46 m away (a slice 0.3 m high, below any detector's minimum
     obstacle height) are not "a car of 30 returns", and a reduction may not stop there
     (the same rule as the fault relations' well-covered obstacles).
+
+    A well-seen pedestrian or cyclist (``well_seen``,
+    :class:`~pytest_metamorphic.lidar.judging.well_seen.WellSeen`: hundreds of returns
+    from head to foot, standing apart) found as ``"unknown"`` is a violation whatever
+    ``classes`` says, unless ``classes="any"``; ``well_seen=None`` accepts it.
     """
 
     def __init__(
@@ -74,12 +80,16 @@ class InsertedDetected(PlacedObjectCheck):
         min_detected: float = 0.5,
         min_height_share: float = 0.8,
         classes: ClassRule = "own_or_unknown",
+        well_seen: WellSeen | None = WellSeen(),
         scope: ScopeLike = "roi",
     ) -> None:
         super().__init__(
             min_points=min_points, min_detected=min_detected, min_height_share=min_height_share,
             classes=classes, scope=scope,
         )  # fmt: skip
+        if well_seen is not None and not isinstance(well_seen, WellSeen):
+            raise InvalidArgument(f"well_seen={well_seen!r} must be a WellSeen or None")
+        self.well_seen = None if self.classes == "any" else well_seen
         held = {
             "own": "obstacles of its class",
             "own_or_unknown": "obstacles of its class or unknown",
@@ -125,11 +135,22 @@ class InsertedDetected(PlacedObjectCheck):
             found_as=found.main_label(),
             classes=self.classes,
         )
-        if found.share_as >= self.min_detected:
-            return Verdict(True, self.name, details=details)
         template = insertion.template
         origin = "" if template is None else f", a labelled {template.label} from {template.origin}"
         what = f"the inserted {insertion.box.describe()} ({returns} returns{origin})"
+        seen = self.well_seen
+        if seen is not None and seen.applies(insertion.box, insertion.points):
+            details["well_seen"] = True
+            if seen.demoted(insertion.box, insertion.points[:, :3], boxes):
+                return Verdict(
+                    False,
+                    self.name,
+                    f"{what} is found as an unknown obstacle although well seen ({seen.describe()}, "
+                    f"standing apart): a {insertion.box.label} demoted",
+                    details,
+                )
+        if found.share_as >= self.min_detected:
+            return Verdict(True, self.name, details=details)
         if found.share >= self.min_detected:
             held = ", ".join(f"{label} {count}" for label, count in found.labels.most_common())
             wrong = [label for label in found.labels if accepted and label not in accepted]

@@ -50,6 +50,7 @@ _EGO_CLEARANCE = 0.3  # metres between a placed footprint and the car's own
 _NEAR_BEARINGS = 24  # every 15 degrees
 _FAR_STEP = 5.0  # degrees between far-field bearings
 _FAR_SHARES = (0.6, 0.7, 0.8, 0.9)  # of the far limit
+_SCOPE_MARGIN = 0.2  # metres a placed footprint keeps inside the scope
 
 
 def ego_box(domain: OperatingDomain = DEFAULT_DOMAIN) -> Box:
@@ -121,7 +122,8 @@ def domain_placements(
 ) -> list[Placement]:
     """Up to ``limit`` free places for ``template`` in ``frame`` within ``reach`` (module
     docstring), each on free ground (no return more than 0.3 m above the local ground in
-    the footprint grown by 0.5 m), in clear view and judged by ``scope``.
+    the footprint grown by 0.5 m), in clear view and judged by ``scope`` with 0.2 m to
+    spare.
 
     ``"as seen"`` is :func:`free_placements`; ``"near field"`` takes solid templates only
     (any other gives none) and orders its places from straight ahead round to behind;
@@ -165,7 +167,9 @@ def domain_placements(
         if z is None or not ground.in_clear_view(probe):
             continue
         placement = Placement(candidate.bearing, candidate.range, z, candidate.turn)
-        if not chosen.judged([template.box_at(placement)], frame)[0]:
+        # Grown by 0.2 m: the scope samples a footprint, and the face of a lorry a few
+        # centimetres outside a wedge's tip holds most of its returns.
+        if not chosen.judged([template.box_at(placement).grown(_SCOPE_MARGIN)], frame)[0]:
             continue
         found.append(placement)
         if len(found) == limit:

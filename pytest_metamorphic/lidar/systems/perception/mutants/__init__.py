@@ -61,6 +61,13 @@ level_ground                the ground taken to be the plane a level sensor at 1
 stale_packets               1-degree azimuth columns without a return keep the returns they
                             last held (a scan buffer not cleared where packets were lost:
                             ouster-sdk issue #300)
+self_crop_margin            returns within the car's footprint grown by 1 m dropped (a
+                            self-filter cut too wide: autoware_universe issue #703, pull
+                            request #2864)
+oversized_cluster_drop      clusters of more than 12,000 returns dropped (a cluster-size cap
+                            on raw returns: autoware_core issue #1379)
+near_pedestrians_unknown    pedestrians within 6 m reported as unknown (a classifier that
+                            does not know people close by: autoware_universe issue #7563)
 ==========================  =================================================================
 """
 
@@ -89,6 +96,11 @@ from pytest_metamorphic.lidar.systems.perception.mutants.motion import (
     SparseHeadingFlip,
     TemporalGround,
     ViewYawCorrection,
+)
+from pytest_metamorphic.lidar.systems.perception.mutants.near_field import (
+    NearPedestriansUnknown,
+    OversizedClusterDrop,
+    SelfCropMargin,
 )
 from pytest_metamorphic.lidar.systems.perception.mutants.object_filters import (
     ConstantRangeFilter,
@@ -149,6 +161,9 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         LongClusterFilter,
         StalePackets,
         LevelGround,
+        SelfCropMargin,
+        OversizedClusterDrop,
+        NearPedestriansUnknown,
     )
 }
 
