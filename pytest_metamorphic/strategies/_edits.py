@@ -119,7 +119,7 @@ def inserted_objects(
       (:func:`~pytest_metamorphic.lidar.followups.insert.catalogue.solid_road_users`,
       with ``road_users``; solid templates among ``objects``) within the first metres on
       every side of the car, lorries and buses with their near end there (dense);
-    * ``"far field"``: any of them 60-90 % of the way to the far limit.
+    * ``"far field"``: any of them 35-90 % of the way to the far limit.
 
     Shrinks toward the first band, the first object, the smallest move from where it was
     seen and the first scale (1). Not applicable (and reported so) when there is no object

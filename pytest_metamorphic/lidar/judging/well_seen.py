@@ -27,13 +27,15 @@ far out on the six KITTI sweeps and a rendered street: 249 pedestrians and cycli
 
 Only pedestrians and cyclists by default (``classes``): a van or lorry reported as an
 unknown obstacle is still a large obstacle to stop for, and the reference's car rules
-stop at 6.5 m by design.
+stop at 6.5 m by design. And only a class the detector shows it has: one it reports for
+some obstacle of the source or the follow-up (the scikit-learn example has no cyclist
+class; all its cyclists are unknown, which is not a demotion).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,10 +88,16 @@ class WellSeen:
             raise InvalidArgument(f"classes={self.classes!r} must be a tuple of class names")
         object.__setattr__(self, "classes", tuple(self.classes))
 
-    def applies(self, box: Box, points: NDArray[np.floating]) -> bool:
+    def applies(
+        self, box: Box, points: NDArray[np.floating], reported: Collection[str] | None = None
+    ) -> bool:
         """Whether the object in ``box`` (its true box where it stands), seen by
-        ``points`` (n, >=3), is well seen."""
+        ``points`` (n, >=3), is well seen, and its class is judged: one of
+        :attr:`classes` and, when ``reported`` (the labels the detector gave any
+        obstacle) is given, among them."""
         if box.label not in self.classes or box.size[2] < self.min_height:
+            return False
+        if reported is not None and box.label not in reported:
             return False
         if len(points) < self.min_returns:
             return False

@@ -20,8 +20,10 @@ relation                          follow-up                            expected 
 :func:`packet_loss`               1-10 of its packets lost             well-covered O kept (*)
 :func:`range_quantization`        ranges rounded to 5/10/20 cm         O kept
 :func:`object_removal`            one car/pedestrian/cyclist removed   the others kept
-:func:`object_insertion`          a real object put on free ground     it is found (its class),
-                                                                       others kept
+:func:`object_insertion`          a real object put on free ground,    it is found (its class),
+                                  as seen or far out                   others kept
+:func:`near_field_insertion`      a whole road user within 5 m of the  the same
+                                  car, every side; lorries close by
 :func:`object_relocation`         one object moved nearer, farther,    found where it went (its
                                   around the sensor or turned          class), others kept
 :func:`adverse_weather`           fog or rain of 200/100/50 m          well-covered O kept
@@ -105,6 +107,7 @@ from pytest_metamorphic.relations.lidar.noise import (
     outside_removal,
 )
 from pytest_metamorphic.relations.lidar.objects import (
+    near_field_insertion,
     object_insertion,
     object_relocation,
     object_removal,
@@ -139,6 +142,7 @@ __all__ = [
     "mirror_symmetry",
     "mr1_cardinality",
     "mr1_subset",
+    "near_field_insertion",
     "object_insertion",
     "object_relocation",
     "object_removal",
@@ -207,6 +211,7 @@ def lidar_relations(
         range_quantization(scope=scope),
         object_removal(scope=scope, matcher=kept),
         object_insertion(scope=scope, matcher=kept),
+        near_field_insertion(scope=scope, matcher=kept),
         object_relocation(scope=scope, matcher=kept, center_tolerance=place, yaw_tolerance=heading),
         adverse_weather(scope=scope),
         sensor_pose(scope=scope, center_tolerance=place, **posed),

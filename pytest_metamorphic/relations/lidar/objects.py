@@ -32,6 +32,7 @@ from pytest_metamorphic.strategies._edits import (
 )
 
 __all__ = [
+    "near_field_insertion",
     "object_insertion",
     "object_relocation",
     "object_removal",
@@ -86,7 +87,7 @@ def object_insertion(
     matcher: Matcher | None = None,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
-    reach: Sequence[Reach] = REACHES,
+    reach: Sequence[Reach] = ("as seen", "far field"),
     domain: OperatingDomain = DEFAULT_DOMAIN,
     name: str = "an object inserted => it is detected and the others kept",
 ) -> MetamorphicRelation:
@@ -104,9 +105,8 @@ def object_insertion(
     re-projected onto ``layout``'s beams (default: the frame's sensor), hiding what it
     stands in front of. Where it goes covers the operating domain (``reach`` bands of
     ``domain``, :mod:`~pytest_metamorphic.lidar.followups.insert.reach`): near the range
-    it was seen from, in the near field (the built-in road users as whole meshes, within
-    the first 5 m on every side of the car; lorries and buses with their near end there,
-    tens of thousands of returns), and far out (60-90 % of the sensor's range).
+    it was seen from and far out (35-90 % of the sensor's range); the near field (the
+    first metres around the car) is :func:`near_field_insertion`'s.
     Shrinking goes toward the first band, the first object and the smallest move from
     where it was seen; a violation reduces to the fewest inserted returns that still fail.
     An unlabelled recording has no objects of its own: the built-in road users are
@@ -150,6 +150,49 @@ def object_insertion(
         return inserted_objects(_frame(frame), scope=scope, **options)
 
     return lidar_relation(name, followup, relation)
+
+
+def near_field_insertion(
+    *,
+    clearance: float = 5.0,
+    min_points: int = 30,
+    min_detected: float = 0.5,
+    classes: ClassRule = "own_or_unknown",
+    well_seen: WellSeen | None = WellSeen(),
+    matcher: Matcher | None = None,
+    layout: BeamLayout | None = None,
+    scope: ScopeLike = "roi",
+    domain: OperatingDomain = DEFAULT_DOMAIN,
+    name: str = "an object inserted in the near field => it is detected and the others kept",
+) -> MetamorphicRelation:
+    """A road user standing right beside, in front of or behind the car is detected, and
+    nothing else is lost: :func:`object_insertion` in the ``"near field"`` band of
+    ``domain`` (:mod:`~pytest_metamorphic.lidar.followups.insert.reach`).
+
+    The follow-up puts one of the built-in road users, as a whole mesh (a child to an
+    articulated lorry, :func:`~pytest_metamorphic.lidar.followups.insert.catalogue.solid_road_users`),
+    as close to the car as it can stand (0.3 m clear of ``domain.ego_size_m``), on
+    every side and both ways round, wholly within ``domain.near_field_m`` (5 m); a lorry
+    or a bus, longer than that, with its near end there and tens of thousands of returns.
+    It stands on the nearest ground the sensor sees (none is seen under the first metres).
+    This is where self-filters, blind zones, minimum ranges, cluster-size caps and
+    classifiers that never saw a person this close live: faults no recording's templates
+    reach (they hold the faces a sensor saw from metres away, and from a metre or two a
+    sensor looks down onto the roof they lack).
+
+    The check is :func:`object_insertion`'s. Precondition: a detector that reports what
+    stands in its first metres; one that crops a blind zone on purpose states it with a
+    smaller ``domain`` (``OperatingDomain(near_field_m=...)`` cannot go below the car,
+    so pass ``scope`` with an ROI that leaves the blind zone out). Holds for the
+    reference, its whole-scene variant, the scikit-learn example and the DBSCAN-ties
+    detector (tests/relations/test_soundness.py).
+    """
+    relation = object_insertion(
+        objects=None, road_users=True, clearance=clearance, min_points=min_points,
+        min_detected=min_detected, classes=classes, well_seen=well_seen, matcher=matcher,
+        layout=layout, scope=scope, reach=("near field",), domain=domain, name=name,
+    )  # fmt: skip
+    return relation
 
 
 def object_relocation(

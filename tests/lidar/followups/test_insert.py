@@ -305,9 +305,11 @@ def test_an_inserted_pedestrian_reported_as_a_car_is_a_violation() -> None:
     assert not verdict.holds and "is found as a car, not a pedestrian" in verdict.explanation
     as_unknown = [dataclasses.replace(b, label="unknown") for b in reference(followup)]
     # Not called anything else: accepted, unless it was well seen (617 returns, head to
-    # foot, standing apart): then "unknown" is a pedestrian demoted.
-    assert InsertedDetected(well_seen=None).check([], as_unknown, context).holds
-    demoted = check.check([], as_unknown, context)
+    # foot, standing apart) by a detector that has a pedestrian class (the source's
+    # pedestrian is one): then "unknown" is a pedestrian demoted.
+    assert check.check([], as_unknown, context).holds  # no pedestrian class shown
+    assert InsertedDetected(well_seen=None).check(reference(frame), as_unknown, context).holds
+    demoted = check.check(reference(frame), as_unknown, context)
     assert not demoted.holds and "demoted" in demoted.explanation
     assert not InsertedDetected(classes="own").check([], as_unknown, context).holds
     assert InsertedDetected(classes="any").check([], as_cars(reference(followup)), context).holds
@@ -402,6 +404,7 @@ def test_a_well_seen_pedestrian_is_not_demoted_by_a_far_fragment_or_a_merge() ->
     local = rng.uniform(-0.5, 0.5, (400, 3)) * np.array([0.6, 0.5, 1.7])
     returns = local + np.array([7.0, 0.0, -1.0])
     assert seen.applies(person, returns)
+    assert not seen.applies(person, returns, reported={"car", "unknown"})  # no such class
     assert not seen.applies(person, returns[:60])  # a far fragment
     assert not seen.applies(dataclasses.replace(person, label="car"), returns)
     child = dataclasses.replace(person, size=(0.4, 0.35, 1.15), center=(7.0, 0.0, -1.2))

@@ -139,7 +139,10 @@ class InsertedDetected(PlacedObjectCheck):
         origin = "" if template is None else f", a labelled {template.label} from {template.origin}"
         what = f"the inserted {insertion.box.describe()} ({returns} returns{origin})"
         seen = self.well_seen
-        if seen is not None and seen.applies(insertion.box, insertion.points):
+        reported = {box.label for box in boxes} | {
+            box.label for box in as_boxes(source_output, "source")
+        }
+        if seen is not None and seen.applies(insertion.box, insertion.points, reported):
             details["well_seen"] = True
             if seen.demoted(insertion.box, insertion.points[:, :3], boxes):
                 return Verdict(

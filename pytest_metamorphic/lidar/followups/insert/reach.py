@@ -16,8 +16,10 @@ blind-zone handling, cluster-size caps, range cut-offs) are never triggered.
   holds tens of thousands of returns (dense). A template cut from a recording is never
   placed there: it holds the faces a sensor saw metres away, and from a metre or two the
   sensor looks down onto the roof it lacks;
-* ``"far field"``: any template from 60 % to 90 % of the far limit (``max_range_m``, by
-  default the sensor's own range), every 5 degrees, on ground the sensor sees there.
+* ``"far field"``: any template from 35 % to 90 % of the far limit (``max_range_m``, by
+  default the sensor's own range: 42-108 m for an HDL-64E's 120 m), every 5 degrees, on
+  ground the sensor sees there and in scope (a region that ends at 70 m, as KITTI's
+  labelled wedge does, takes the nearer of them).
 
 Ground under a near-field placement is the nearest ground the sensor sees
 (:attr:`~pytest_metamorphic.lidar.followups.insert.placement._TargetGround.nearest_ground`):
@@ -49,7 +51,7 @@ REACHES: tuple[Reach, ...] = ("as seen", "near field", "far field")
 _EGO_CLEARANCE = 0.3  # metres between a placed footprint and the car's own
 _NEAR_BEARINGS = 24  # every 15 degrees
 _FAR_STEP = 5.0  # degrees between far-field bearings
-_FAR_SHARES = (0.6, 0.7, 0.8, 0.9)  # of the far limit
+_FAR_SHARES = (0.35, 0.45, 0.55, 0.65, 0.75, 0.9)  # of the far limit
 _SCOPE_MARGIN = 0.2  # metres a placed footprint keeps inside the scope
 
 
