@@ -32,7 +32,13 @@ from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.frame import Frame
-from pytest_metamorphic.lidar.model.obstacles import Box, IoUMatcher, as_boxes, footprint_distances
+from pytest_metamorphic.lidar.model.obstacles import (
+    Box,
+    IoUMatcher,
+    as_boxes,
+    box_gap,
+    footprint_distances,
+)
 from pytest_metamorphic.lidar.systems.perception import ReferencePerception
 
 __all__ = [
@@ -107,16 +113,6 @@ def shadow_overlaps(near: Box, box: Box, *, reach: float = math.inf) -> bool:
     pad = math.radians(1.0)
     overlap = far[0].min() <= front[0].max() + pad and far[0].max() >= front[0].min() - pad
     return bool(overlap and far[1].min() <= reach and far[1].max() >= front[1].min())
-
-
-def box_gap(a: Box, b: Box) -> float:
-    """Bird's-eye distance between two box footprints (0 when they touch or overlap)."""
-    return float(
-        min(
-            footprint_distances(a.corners_bev(), [b]).min(),
-            footprint_distances(b.corners_bev(), [a]).min(),
-        )
-    )
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,9 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.core.matching import one_to_one
 from pytest_metamorphic.core.relations import CheckContext, Relation, Verdict
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, box_support
+from pytest_metamorphic.lidar.model.obstacles import Box, as_boxes, box_gap, box_support
 from pytest_metamorphic.lidar.model.pose import SensorPose
+from pytest_metamorphic.lidar.model.terrain import Terrain
 
 __all__ = [
     "SAME_OBSTACLE",
@@ -33,6 +34,7 @@ __all__ = [
     "PosedObstacles",
     "RotatedObstacles",
     "ShiftedObstacles",
+    "TerrainObstacles",
     "moved_obstacles",
 ]
 
@@ -119,6 +121,16 @@ class MovedObstacles(Relation):
 
     moved = "moved"
 
+    @property
+    def note(self) -> str:
+        """What a violation's message adds about the follow-up. Rotations, the mirror,
+        shifts and poses move every point and add or drop none, so the follow-up holds
+        the same scene: whatever differs was decided by the detector."""
+        return (
+            f" (the follow-up holds exactly the source's points, {self.moved}: any "
+            "difference is the detector's)"
+        )
+
     def move(self, box: Box, context: CheckContext) -> Box:
         """Where ``box`` should be in the follow-up."""
         raise NotImplementedError
@@ -175,12 +187,7 @@ class MovedObstacles(Relation):
             for i in missing
         ]
         lines += [f"follow-up {found[j].describe()} has no source counterpart" for j in extra]
-        # Rotations, the mirror, shifts and poses move every point and add or drop none, so
-        # the follow-up holds the same scene: whatever differs was decided by the detector.
-        note = (
-            f" (the follow-up holds exactly the source's points, {self.moved}: any "
-            "difference is the detector's)"
-        )
+        note = self.note
         details["blamed"] = list(missing)
         details["missing"] = [expected[i].describe() for i in missing]
         details["extra"] = [found[j].describe() for j in extra]
@@ -369,6 +376,75 @@ class PosedObstacles(MovedObstacles):
 
     def move_details(self, context: CheckContext) -> dict[str, Any]:
         return {"pose": self._pose(context).describe()}
+
+
+class TerrainObstacles(MovedObstacles):
+    """``O'`` keeps ``O``'s road users where they stood, each raised or lowered with the
+    road under it: the follow-up's ``grade_percent``, ``grade_start_m``,
+    ``grade_curve_m``, ``camber_percent`` and ``crown_y_m``
+    (:class:`~pytest_metamorphic.lidar.model.terrain.Terrain`; see
+    :class:`MovedObstacles` for what is compared)."""
+
+    moved = "on the road's new shape"
+
+    @property
+    def note(self) -> str:
+        return (
+            " (the follow-up is the same scene rendered again on the new road: the same "
+            "objects, beams and noise)"
+        )
+
+    def _terrain(self, context: CheckContext) -> Terrain:
+        values = {
+            key: self._param(context, key, "road shape", "road_terrain() or Terrain.params()")
+            for key in ("grade_percent", "grade_start_m", "grade_curve_m", "camber_percent",
+                        "crown_y_m")  # fmt: skip
+        }
+        return Terrain(
+            values["grade_percent"], values["grade_start_m"], values["grade_curve_m"],
+            values["camber_percent"], values["crown_y_m"],
+        )  # fmt: skip
+
+    def move(self, box: Box, context: CheckContext) -> Box:
+        rise = float(self._terrain(context).height(box.center[0], box.center[1]))
+        return box.translated(0.0, 0.0, rise)
+
+    def check(self, source_output: Any, followup_output: Any, context: CheckContext) -> Verdict:
+        """As :class:`MovedObstacles`, and no *phantom*: a follow-up obstacle the scope
+        judges, of >= 30 returns, more than 1 m from every object of the scene
+        (``params["scene_objects"]``: road users and background, as boxes) and from every
+        source obstacle. Nothing but road stands there: the road became an obstacle (a
+        ground model that cannot follow the slope; a phantom ahead brakes the car)."""
+        verdict = super().check(source_output, followup_output, context)
+        objects = context.params.get("scene_objects")
+        if not verdict.holds or objects is None:
+            return verdict
+        near = [*as_boxes(objects, "scene_objects"), *as_boxes(source_output, "source")]
+        found = as_boxes(followup_output, "follow-up")
+        judged = self.scope.judged(found, context.followup_input)
+        phantoms = [
+            box for box, keep in zip(found, judged, strict=True)
+            if keep and (box.points or 0) >= _PHANTOM_POINTS
+            and all(box_gap(box, other) > _PHANTOM_GAP for other in near)
+        ]  # fmt: skip
+        details = {**verdict.details, "phantoms": [box.describe() for box in phantoms]}
+        if not phantoms:
+            return Verdict(True, self.name, verdict.explanation, details)
+        listed = "; ".join(box.describe() for box in phantoms[:5])
+        return Verdict(
+            False,
+            self.name,
+            f"the road became an obstacle {self.moved}: {listed} (nothing of the scene "
+            f"within {_PHANTOM_GAP:g} m){self.note}",
+            details,
+        )
+
+    def move_details(self, context: CheckContext) -> dict[str, Any]:
+        return {"terrain": self._terrain(context).describe()}
+
+
+_PHANTOM_POINTS = 30  # returns a phantom obstacle needs to count
+_PHANTOM_GAP = 1.0  # metres from every object of the scene
 
 
 _CHECKS: dict[str, type[MovedObstacles]] = {

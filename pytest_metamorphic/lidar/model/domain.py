@@ -29,6 +29,8 @@ The defaults are figures of real passenger cars and roads, each with its source:
 * **grade** ±8 %: the steepest grades of urban arterial roads in AASHTO's *A Policy on
   Geometric Design of Highways and Streets* (the "Green Book": 5-8 % for arterials,
   up to 15 % for local streets, 3-6 % for freeways);
+* **camber** 0 to 2.5 %: the normal cross slope of an urban road falling from its crown
+  to the kerbs (AASHTO: 1.5-2 % on paved roads, up to 2.5 % where rain is heavy);
 * **near field** 5 m: the first metres around the car, where self-filters, blind-zone
   handling and minimum ranges live (a passenger car is about 4.4 x 1.8 m, its sensor
   over the middle of its roof: a bumper is 2-2.5 m from the sensor);
@@ -85,6 +87,8 @@ class OperatingDomain:
         ±1.
     grade_percent : (low, high) float
         Road grades in percent (rise over run x 100), positive uphill ahead. Within ±30.
+    camber_percent : (low, high) float
+        Cross slopes in percent, positive falling from the crown to both sides. Within ±8.
     near_field_m : float
         Bird's-eye distance from the sensor within which an object is in the near field.
     max_range_m : float or None
@@ -98,13 +102,14 @@ class OperatingDomain:
     roll_deg: tuple[float, float] = (-2.5, 2.5)
     height_m: tuple[float, float] = (-0.15, 0.15)
     grade_percent: tuple[float, float] = (-8.0, 8.0)
+    camber_percent: tuple[float, float] = (0.0, 2.5)
     near_field_m: float = 5.0
     max_range_m: float | None = None
     ego_size_m: tuple[float, float] = (4.4, 1.8)
 
     def __post_init__(self) -> None:
         for name, limit in (("pitch_deg", 15.0), ("roll_deg", 15.0), ("height_m", 1.0),
-                            ("grade_percent", 30.0)):  # fmt: skip
+                            ("grade_percent", 30.0), ("camber_percent", 8.0)):  # fmt: skip
             object.__setattr__(self, name, _interval(name, getattr(self, name), limit=limit))
         for name in ("near_field_m", "max_range_m"):
             value = getattr(self, name)
@@ -132,6 +137,7 @@ class OperatingDomain:
         return (
             f"pitch {_span(self.pitch_deg, '°')}, roll {_span(self.roll_deg, '°')}, "
             f"height {_span(self.height_m, ' m')}, grade {_span(self.grade_percent, ' %')}, "
+            f"camber {_span(self.camber_percent, ' %')}, "
             f"near field {self.near_field_m:g} m, far field {far}"
         )
 

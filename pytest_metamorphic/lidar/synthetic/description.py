@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from collections.abc import Mapping
@@ -15,6 +16,7 @@ from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
 from pytest_metamorphic.lidar.model.obstacles import Box, Label
+from pytest_metamorphic.lidar.model.terrain import Terrain
 from pytest_metamorphic.lidar.roi import ROI
 
 __all__ = [
@@ -240,6 +242,11 @@ class Scene:
     ground : bool
       Whether there is a ground plane.
     name : str
+    terrain : Terrain or None
+      The road's shape (:class:`~pytest_metamorphic.lidar.model.terrain.Terrain`): the
+      ground follows it and every obstacle and background object stands on it, tilted
+      with the road (an obstacle's box stays upright, its bottom on the road under its
+      centre). None: flat. Build a scene on a terrain with :meth:`on_terrain`.
     """
 
     sensor_height: float = 1.73
@@ -248,6 +255,7 @@ class Scene:
     background: tuple[BackgroundObject, ...] = ()
     ground: bool = True
     name: str = "scene"
+    terrain: Terrain | None = None
 
     def __post_init__(self) -> None:
         height = self.sensor_height
@@ -267,9 +275,26 @@ class Scene:
         for index, thing in enumerate(background):
             if not isinstance(thing, BackgroundObject):
                 raise InvalidArgument(f"background[{index}] is {type(thing).__name__}")
+        if self.terrain is not None and not isinstance(self.terrain, Terrain):
+            raise InvalidArgument(f"terrain must be a Terrain or None, got {self.terrain!r}")
         object.__setattr__(self, "sensor_height", float(height))
         object.__setattr__(self, "obstacles", obstacles)
         object.__setattr__(self, "background", background)
+
+    def on_terrain(self, terrain: Terrain) -> Scene:
+        """The same scene on ``terrain``: each obstacle raised (or lowered) by the road's
+        height under its centre, its box with it; the sensor keeps its height above the
+        road under it."""
+        if not isinstance(terrain, Terrain):
+            raise InvalidArgument(f"terrain must be a Terrain, got {terrain!r}")
+        if self.terrain is not None:
+            raise InvalidArgument(f"{self.name!r} already stands on a terrain")
+        raised = []
+        for obstacle in self.obstacles:
+            x, y, _ = obstacle.box.center
+            dz = float(terrain.height(x, y))
+            raised.append(dataclasses.replace(obstacle, box=obstacle.box.translated(0, 0, dz)))
+        return dataclasses.replace(self, obstacles=tuple(raised), terrain=terrain)
 
     @property
     def boxes(self) -> tuple[Box, ...]:

@@ -21,6 +21,7 @@ from pytest_metamorphic.lidar.synthetic.description import (
     Obstacle,
     Scene,
 )
+from pytest_metamorphic.lidar.model.terrain import Terrain
 
 __all__ = ["SceneMesh", "obstacle_geometry", "scene_mesh"]
 
@@ -181,27 +182,80 @@ def obstacle_geometry(
     return _place(unit, obstacle.box.size, 0.0, (0.0, 0.0, 0.0)), faces, reflectivity
 
 
+_TERRAIN_CELL = 1.0  # metres between the height field's vertices
+
+
+def _tilt(gradient: tuple[float, float]) -> NDArray[np.float64]:
+    """The rotation that stands a thing upright on a road of ``gradient`` (dz/dx, dz/dy):
+    its up axis along the road's normal."""
+    gx, gy = gradient
+    normal = np.array([-gx, -gy, 1.0]) / math.sqrt(gx * gx + gy * gy + 1.0)
+    up = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(up, normal)
+    sine, cosine = float(np.linalg.norm(axis)), float(normal[2])
+    if sine < 1e-12:
+        return np.eye(3)
+    k = axis / sine
+    cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + sine * cross + (1.0 - cosine) * cross @ cross
+
+
+def _lowest_under(terrain: Terrain, centre: tuple[float, float], radius: float) -> float:
+    angles = np.linspace(0.0, 2 * math.pi, 9)
+    x = np.r_[centre[0], centre[0] + radius * np.cos(angles)]
+    y = np.r_[centre[1], centre[1] + radius * np.sin(angles)]
+    return float(terrain.height(x, y).min())
+
+
+def _ground(
+    ground_z: float, extent: float, terrain: Terrain | None
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The ground: a square of two triangles when flat, else a height field of 1 m cells
+    (a vertex row on the crown line, so the camber's ridge is exact)."""
+    if terrain is None or terrain.flat:
+        e = extent
+        vertices = np.array(
+            [[-e, -e, ground_z], [e, -e, ground_z], [e, e, ground_z], [-e, e, ground_z]]
+        )
+        return vertices, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+    steps = int(math.ceil(extent / _TERRAIN_CELL))
+    xs = np.arange(-steps, steps + 1) * _TERRAIN_CELL
+    ys = xs + (terrain.crown_y_m % _TERRAIN_CELL)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    gz = ground_z + terrain.height(gx, gy)
+    vertices = np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
+    n = len(ys)
+    i, j = np.meshgrid(np.arange(len(xs) - 1), np.arange(n - 1), indexing="ij")
+    a = (i * n + j).ravel()
+    b, c, d = a + n, a + n + 1, a + 1
+    faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return vertices, faces.astype(np.int64)
+
+
 def scene_mesh(scene: Scene, *, ground_extent: float = 130.0) -> SceneMesh:
     """Build the triangle meshes of a scene (obstacles, background, ground square)."""
     ground_z = -scene.sensor_height
     pieces: list[tuple[NDArray[np.float64], NDArray[np.int64], int, float]] = []
+    terrain = scene.terrain
     for index, obstacle in enumerate(scene.obstacles):
         box = obstacle.box
         local, faces, reflectivity = obstacle_geometry(obstacle)
         c, s = math.cos(box.yaw), math.sin(box.yaw)
         rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        vertices = local @ rotation.T + np.array([box.center[0], box.center[1], box.bottom_z])
+        vertices = local @ rotation.T
+        if terrain is not None:  # it stands on the road's slope (its box stays upright)
+            vertices = vertices @ _tilt(terrain.gradient(box.center[0], box.center[1])).T
+        vertices = vertices + np.array([box.center[0], box.center[1], box.bottom_z])
         pieces.append((vertices, faces, index, reflectivity))
     for item in scene.background:
         unit, faces = _background_shape(item.kind)
-        vertices = _place(unit, item.size, item.yaw, (*item.center, ground_z))
+        base = ground_z
+        if terrain is not None:  # on the road's lowest point under it: nothing floats
+            base += _lowest_under(terrain, item.center, item.footprint_radius())
+        vertices = _place(unit, item.size, item.yaw, (*item.center, base))
         pieces.append((vertices, faces, BACKGROUND_INSTANCE, _REFLECTIVITY[item.kind]))
     if scene.ground:
-        e = float(ground_extent)
-        vertices = np.array(
-            [[-e, -e, ground_z], [e, -e, ground_z], [e, e, ground_z], [-e, e, ground_z]]
-        )
-        faces = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+        vertices, faces = _ground(ground_z, float(ground_extent), terrain)
         pieces.append((vertices, faces, GROUND_INSTANCE, _REFLECTIVITY["ground"]))
     if not pieces:
         return SceneMesh(

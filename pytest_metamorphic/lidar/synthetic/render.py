@@ -5,6 +5,8 @@
 from __future__ import annotations
 
 import math
+import weakref
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,7 +22,37 @@ from pytest_metamorphic.lidar.synthetic.description import Scene
 from pytest_metamorphic.lidar.synthetic.meshes import SceneMesh, scene_mesh
 from pytest_metamorphic.lidar.synthetic.raycast import CastEngine, cast_rays
 
-__all__ = ["render"]
+__all__ = ["Rendering", "render", "rendering_of"]
+
+
+@dataclass(frozen=True)
+class Rendering:
+    """How a frame was rendered: what :func:`render` was given, to render it again
+    (another terrain, the same beams and noise)."""
+
+    scene: Scene
+    beams: ScanPattern
+    seed: int
+    range_noise: float | None
+    azimuth_range: tuple[float, float] | None
+    engine: CastEngine
+
+    def again(self, scene: Scene) -> Frame:
+        """``scene`` rendered as this frame was."""
+        return render(
+            scene, beams=self.beams, seed=self.seed, range_noise=self.range_noise,
+            azimuth_range=self.azimuth_range, engine=self.engine,
+        )  # fmt: skip
+
+
+# The rendering of each frame render() made (while the frame lives).
+_RENDERINGS: weakref.WeakKeyDictionary[Frame, Rendering] = weakref.WeakKeyDictionary()
+
+
+def rendering_of(frame: Frame) -> Rendering | None:
+    """How ``frame`` was rendered, when :func:`render` made it (None: a recording, or a
+    follow-up edited from a rendered frame)."""
+    return _RENDERINGS.get(frame)
 
 
 def render(
@@ -96,7 +128,9 @@ def render(
         Box(o.box.center, o.box.size, o.box.yaw, o.box.label, o.box.score, int(counts[i]))
         for i, o in enumerate(scene.obstacles)
     )
-    return Frame(cloud, roi=scene.roi, boxes=boxes, source=f"synthetic:{scene.name}", sensor=beams)
+    frame = Frame(cloud, roi=scene.roi, boxes=boxes, source=f"synthetic:{scene.name}", sensor=beams)
+    _RENDERINGS[frame] = Rendering(scene, beams, int(seed), range_noise, azimuth_range, engine)
+    return frame
 
 
 def _cos_incidence(

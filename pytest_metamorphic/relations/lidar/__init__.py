@@ -56,6 +56,8 @@ does) cannot tell the inputs apart. Rotation and reflection move the obstacles; 
 :func:`rotation_equivariance` and :func:`mirror_symmetry` for their tolerances.
 :func:`translation_equivariance` (a shift along x by whole grid cells) is optional and not
 in :func:`lidar_relations`: it tests only detectors that claim translation invariance.
+Nor is :func:`road_terrain` (the street on a slope, before a crest, across a camber): it
+renders its source's scene again, so it needs rendered frames, not recordings.
 """
 
 from __future__ import annotations
@@ -115,6 +117,7 @@ from pytest_metamorphic.relations.lidar.objects import (
     removal_candidates,
 )
 from pytest_metamorphic.relations.lidar.pose import POSE_DIMENSIONS, sensor_pose
+from pytest_metamorphic.relations.lidar.terrain import road_terrain
 from pytest_metamorphic.relations.lidar.weather import DEFAULT_VISIBILITIES, adverse_weather
 
 __all__ = [
@@ -152,6 +155,7 @@ __all__ = [
     "packet_loss",
     "permutation_invariance",
     "range_quantization",
+    "road_terrain",
     "removal_candidates",
     "rotation_equivariance",
     "sensor_pose",

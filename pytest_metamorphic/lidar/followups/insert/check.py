@@ -70,7 +70,7 @@ class InsertedDetected(PlacedObjectCheck):
     A well-seen pedestrian or cyclist (``well_seen``,
     :class:`~pytest_metamorphic.lidar.judging.well_seen.WellSeen`: hundreds of returns
     from head to foot, standing apart) found as ``"unknown"`` is a violation whatever
-    ``classes`` says, unless ``classes="any"``; ``well_seen=None`` accepts it.
+    ``classes`` says; ``well_seen=None`` accepts it.
     """
 
     def __init__(
@@ -89,7 +89,7 @@ class InsertedDetected(PlacedObjectCheck):
         )  # fmt: skip
         if well_seen is not None and not isinstance(well_seen, WellSeen):
             raise InvalidArgument(f"well_seen={well_seen!r} must be a WellSeen or None")
-        self.well_seen = None if self.classes == "any" else well_seen
+        self.well_seen = well_seen
         held = {
             "own": "obstacles of its class",
             "own_or_unknown": "obstacles of its class or unknown",

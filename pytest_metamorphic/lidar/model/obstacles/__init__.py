@@ -25,6 +25,7 @@ from pytest_metamorphic.lidar.model.obstacles.matching import (
 )
 from pytest_metamorphic.lidar.model.obstacles.points import (
     box_support,
+    box_gap,
     footprint_distances,
     points_in_boxes,
     share_inside,
@@ -44,6 +45,7 @@ __all__ = [
     "bev_iou",
     "box_support",
     "center_distances",
+    "box_gap",
     "footprint_distances",
     "points_in_boxes",
     "share_inside",

@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pytest_metamorphic.lidar.model.obstacles.box import Box, _as_xyz
 
-__all__ = ["box_support", "footprint_distances", "points_in_boxes", "share_inside"]
+__all__ = ["box_gap", "box_support", "footprint_distances", "points_in_boxes", "share_inside"]
 
 
 def points_in_boxes(
@@ -104,3 +104,13 @@ def footprint_distances(xy: NDArray[np.floating], boxes: Sequence[Box]) -> NDArr
         distance = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0))
         np.minimum(nearest, distance, out=nearest)
     return nearest
+
+
+def box_gap(a: Box, b: Box) -> float:
+    """Bird's-eye distance between two box footprints (0 when they touch or overlap)."""
+    return float(
+        min(
+            footprint_distances(a.corners_bev(), [b]).min(),
+            footprint_distances(b.corners_bev(), [a]).min(),
+        )
+    )

@@ -68,6 +68,9 @@ oversized_cluster_drop      clusters of more than 12,000 returns dropped (a clus
                             on raw returns: autoware_core issue #1379)
 near_pedestrians_unknown    pedestrians within 6 m reported as unknown (a classifier that
                             does not know people close by: autoware_universe issue #7563)
+slope_capped_ground         the ground may rise from the sensor's road by 3 % of the
+                            distance at most (a global slope gate: autoware_universe pull
+                            requests #9297, #10666)
 ==========================  =================================================================
 """
 
@@ -80,6 +83,7 @@ from pytest_metamorphic.lidar.systems.perception.mutants.ground import (
     GlobalGroundPlane,
     LevelGround,
     RoiOffByOne,
+    SlopeCappedGround,
 )
 from pytest_metamorphic.lidar.systems.perception.mutants.inputs import (
     BlindedSensorMonitor,
@@ -164,6 +168,7 @@ MUTANTS: dict[str, type[ReferencePerception]] = {
         SelfCropMargin,
         OversizedClusterDrop,
         NearPedestriansUnknown,
+        SlopeCappedGround,
     )
 }
 

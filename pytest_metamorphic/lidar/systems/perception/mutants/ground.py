@@ -22,6 +22,7 @@ __all__ = [
     "GlobalGroundPlane",
     "LevelGround",
     "RoiOffByOne",
+    "SlopeCappedGround",
 ]
 
 
@@ -106,6 +107,32 @@ class LevelGround(ReferencePerception):
         self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
     ) -> NDArray[np.float32]:
         return np.full(len(points), -self.sensor_height, dtype=np.float32)
+
+
+class SlopeCappedGround(ReferencePerception):
+    """Ground may rise from the sensor's own road by at most ``max_slope`` (3 %) of the
+    distance: higher returns are obstacles, whatever the local ground says.
+
+    A global slope gate keeps walls and embankments out of the ground; tuned on level
+    roads it also cuts an uphill road. Autoware's ``scan_ground_filter`` clamps the ground
+    gradient it fits to ``global_slope_max_ratio`` (autoware_universe pull request
+    #9297) and for a while judged local slopes against that global limit (pull request
+    #10666, "global_slope_max_angle_deg has been implemented in threshold of local
+    slope"). On a level road, and downhill, nothing changes; where the road ahead climbs
+    8 %, it rises through the gate and joins the cars on it.
+    """
+
+    name = "slope_capped_ground"
+    max_slope = 0.03
+    sensor_height = 1.73
+
+    def ground_heights(
+        self, points: NDArray[np.float32], sweep: NDArray[np.float32], roi: object = None
+    ) -> NDArray[np.float32]:
+        local = super().ground_heights(points, sweep, roi)
+        reach = np.hypot(points[:, 0], points[:, 1])
+        gate = -self.sensor_height + self.max_slope * reach
+        return np.minimum(local, gate.astype(np.float32))
 
 
 class RoiOffByOne(ReferencePerception):
