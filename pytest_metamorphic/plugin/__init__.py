@@ -384,7 +384,9 @@ class _SessionReporter:
     def _write_reports(self) -> None:
         options = self.config.stash[OPTIONS]
         if options.report is not None:
-            self.config.stash[_SUMMARY].write_json(options.report)
+            summary = self.config.stash[_SUMMARY]
+            summary.write_json(options.report)
+            _write_coverage_picture(summary.rows(), options.report.with_suffix(".coverage.png"))
         gates = self.config.stash[GATES]
         judged = [
             (result, gates[name].verdict if name in gates else None)
@@ -398,3 +400,14 @@ class _SessionReporter:
             from pytest_metamorphic.reports.campaign import write_job_summary
 
             write_job_summary(options.job_summary, judged, options.campaign_dir)
+
+
+def _write_coverage_picture(rows: list[dict[str, Any]], path: Path) -> None:
+    """The coverage picture beside the JSON report, when matplotlib is installed (the
+    ``plot`` extra); without it the JSON's ``coverage`` counts are all there is."""
+    try:
+        from pytest_metamorphic.reports.coverage_chart import write_coverage_chart
+
+        write_coverage_chart(rows, path)
+    except ImportError:
+        return

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from pytest_metamorphic.core.stats import Recorder, RelationStats, nothing_tested, reasons_of
-from pytest_metamorphic.lidar.judging.coverage import unreached
+from pytest_metamorphic.lidar.judging.coverage import BANDS
 
 __all__ = ["PROPERTY", "SessionSummary", "junit_properties"]
 
@@ -190,34 +190,41 @@ class SessionSummary:
         return lines
 
     def _coverage_lines(self) -> list[str]:
-        """The bands of the operating domain some relation's follow-ups never reached,
-        each with the relations that left it out (counts per band: the JSON report)."""
+        """The bands of the operating domain no follow-up of the run reached, among the
+        relations that vary that dimension (per relation, counts per band: the JSON
+        report). A band one relation reached is tested; a relation that never varies a
+        dimension is not named for it."""
         reached: dict[str, dict[str, int]] = {}
         for test in self.tests.values():
             for name, stats in test.relations.items():
                 cells = reached.setdefault(name, {})
                 for cell, count in stats.coverage.items():
                     cells[cell] = cells.get(cell, 0) + count
-        reached = {name: cells for name, cells in reached.items() if cells}
-        gaps: dict[str, list[str]] = {}
-        for name, cells in reached.items():
-            for line in unreached(cells):
-                dimension, bands = line.split(": ", 1)
-                for band in bands.removeprefix("none ").split(", none "):
-                    gaps.setdefault(f"{dimension} {band}", []).append(name)
-        if not gaps:
-            return []
-        lines = [
-            "operating domain not reached (a band no follow-up of these relations judged or "
-            "placed an object in; counts per band in the --mt-report JSON, 'coverage'):"
-        ]
-        for band, names in gaps.items():
-            if len(names) == len(reached) > 1:
-                lines.append(f"  {band}: none of the {len(names)} relations")
+        lines = []
+        for dimension, bands in BANDS.items():
+            varying = [
+                name for name, cells in reached.items()
+                if any(cell.startswith(dimension + ": ") for cell in cells)
+            ]  # fmt: skip
+            if not varying:
                 continue
-            more = f"; and {len(names) - 3} more" if len(names) > 3 else ""
-            lines.append(f"  {band}: {len(names)} relation(s): {'; '.join(names[:3])}{more}")
-        return lines
+            seen = {cell.split(": ", 1)[1] for name in varying for cell in reached[name]
+                    if cell.startswith(dimension + ": ")}  # fmt: skip
+            for band in bands:
+                if band in seen:
+                    continue
+                more = f"; and {len(varying) - 3} more" if len(varying) > 3 else ""
+                lines.append(
+                    f"  {dimension} {band}: none of the {len(varying)} relation(s) that vary it "
+                    f"({'; '.join(varying[:3])}{more})"
+                )
+        if not lines:
+            return []
+        return [
+            "operating domain not reached (a band no follow-up of the run judged or placed an "
+            "object in; counts per relation and band in the --mt-report JSON, 'coverage'):",
+            *lines,
+        ]
 
     @staticmethod
     def _cell(row: dict[str, Any], column: str) -> str:

@@ -223,7 +223,9 @@ def object_relocation(
     The follow-up (:func:`~pytest_metamorphic.strategies.relocated_objects`) takes one car,
     pedestrian or cyclist out of the sweep (its beams run on to the ground behind it, as
     :func:`object_removal` does) and re-casts its own returns for the frame's sensor
-    (``layout``) after one move of ``kinds``: 5-50 % nearer or farther along its bearing,
+    (``layout``) after one move of ``kinds``: 5-50 % nearer or 5-200 % farther along its
+    bearing (the far field; never into the near field, whose whole meshes
+    :func:`near_field_insertion` places),
     2-180 degrees around the sensor at the same range, or turned 5-30 degrees in place
     (:class:`~pytest_metamorphic.lidar.followups.insert.relocation.RelocateObject`). The
     new place is free ground judged by ``scope``, in clear view, overlapping nothing.

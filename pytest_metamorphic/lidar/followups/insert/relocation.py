@@ -10,7 +10,11 @@ new range, it hides what lies behind it there, and what lies before it hides it.
 
 A :class:`Move` is one of three rigid motions (LiRTest's object translation and rotation):
 
-* ``"range"``: along its bearing, nearer or farther (the sensor sees the same face);
+* ``"range"``: along its bearing, up to half as far or up to three times as far (the
+  far field; the sensor sees the same face). Never into the near field: from a metre or
+  two the sensor would look down onto a roof the template (the faces seen from where it
+  stood) lacks; :func:`~pytest_metamorphic.relations.lidar.near_field_insertion` puts
+  whole meshes there;
 * ``"bearing"``: around the sensor at the same range (the same face, another direction);
 * ``"turn"``: turned in place about its own centre. The template holds only the faces the
   sensor saw, so turns stay within :data:`MAX_TURN` degrees: farther, the faces it would
@@ -49,7 +53,9 @@ MAX_TURN = 30
 """Degrees an object may be turned in place (its template shows only the faces seen)."""
 # Candidate amounts per kind: percent of the range, degrees about the sensor, degrees in place.
 _AMOUNTS: dict[MoveKind, tuple[int, ...]] = {
-    "range": (5, 10, 15, 20, 25, 30, 40, 50),
+    # Farther up to three times the range: the far field (a template's faces stay the
+    # ones seen, from farther away; nearer than half the range they would not).
+    "range": (5, 10, 15, 20, 25, 30, 40, 50, 75, 100, 150, 200),
     "bearing": tuple(range(2, 181, 2)),
     "turn": (5, 10, 15, 20, 25, MAX_TURN),
 }
