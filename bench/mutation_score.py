@@ -11,9 +11,11 @@ reproducible. A mutant is *killed* by a relation when the test fails with a
 Sources: the six labelled KITTI sweeps (``../shared/data/kitti_openpcdet``, ROI = the
 camera wedge KITTI labels cover) and three rendered HDL-64E street scenes (a straight
 road and a junction, with cars at several headings, pedestrians, a cyclist, and trees,
-poles and buildings off the road). Rotation by any angle runs on the rendered scenes only:
+poles and buildings off the road). The road's shape (``road_terrain``, opt-in) and
+rotation by any angle run on the rendered scenes only (terrain: it renders its source's
+scene again; rotation:
 the reference pipeline is not rotation-equivariant at arbitrary angles on cluttered real
-sweeps (see ``rotation_equivariance``). A relation that the reference pipeline violates
+sweeps, see ``rotation_equivariance``). A relation that the reference pipeline violates
 would be unsound; its kills would not count (none does).
 
 Relations run with their default scope: obstacles wholly inside the ROI are judged
@@ -68,6 +70,7 @@ from pytest_metamorphic.lidar.systems.perception.mutants import MUTANTS, mutant 
 from pytest_metamorphic.lidar.systems.perception.whole_scene import WholeScenePerception  # noqa: E402
 from pytest_metamorphic.relations.lidar import (  # noqa: E402
     lidar_relations,
+    road_terrain,
     rotation_equivariance,
 )
 from pytest_metamorphic.strategies import frames  # noqa: E402
@@ -237,12 +240,14 @@ def main() -> None:
     real = frames(str(KITTI), roi=kitti_label_region(), cache_size=6)
     both = st.one_of(real, synthetic)
     suite = [(relation, both) for relation in lidar_relations(scope=args.scope)]
+    # The road's shape is varied on rendered scenes only (road_terrain's docstring).
+    suite.append((road_terrain(scope=args.scope), synthetic))
     suite.append((rotation_equivariance(angles="any", scope=args.scope), synthetic))
     # The learned detector is judged with the tolerance its jitter needs (same order).
     learned_suite = [
         (relation, synthetic) for relation in lidar_relations(scope=args.scope, tolerance="learned")
     ]
-    learned_suite.append(suite[-1])
+    learned_suite += suite[-2:]
     short = [f"R{i + 1}" for i in range(len(suite))]
 
     correct: dict[str, Any] = {

@@ -80,8 +80,9 @@ def road_terrain(
     :func:`~pytest_metamorphic.relations.lidar.sensor_pose` for its place and size (a
     road user standing on a slope is tilted with it, as under a pitched sensor) and of
     :func:`~pytest_metamorphic.relations.lidar.object_relocation` for its heading (30
-    degrees: the object is cast anew, and the box of the street's cyclist 18 m ahead
-    turned by 23 degrees on a 1 % grade, a MinBox of 146 returns), its class
+    degrees, compared only for footprints at least 2.2 m long and 1.5 times as long as
+    wide: the object is cast anew, and a cyclist's MinBox turned by 23 degrees on a 1 %
+    grade, another's by 32 on a 0.3 % camber), its class
     compared with ``same_label`` (off by default: measured, the reference calls the
     street's cyclist 18 m ahead a pedestrian on an 8 % downhill road or a 2.5 % camber,
     its box where it was). New road users are not judged (a sag shows the sensor road
