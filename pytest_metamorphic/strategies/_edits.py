@@ -24,7 +24,6 @@ from pytest_metamorphic.lidar.followups.insert import (
     InsertObject,
     ObjectTemplate,
     Placement,
-    free_placements,
     object_templates,
 )
 from pytest_metamorphic.lidar.followups.insert.catalogue import (
@@ -42,8 +41,8 @@ from pytest_metamorphic.lidar.followups.insert.relocation import (
     MoveKind,
 )
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
+from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
 from pytest_metamorphic.lidar.model.obstacles import Box
 from pytest_metamorphic.lidar.model.sensors import frame_sensor

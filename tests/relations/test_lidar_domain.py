@@ -52,7 +52,9 @@ def test_a_correct_detector_finds_what_stands_right_beside_the_car(system: Any) 
         ("near_pedestrians_unknown", "demoted"),
     ],
 )
-def test_each_near_field_fault_is_killed_by_the_near_field_insertion(name: str, message: str) -> None:
+def test_each_near_field_fault_is_killed_by_the_near_field_insertion(
+    name: str, message: str
+) -> None:
     with pytest.raises(MetamorphicViolation, match=message) as failure:
         _search(mutant(name), near_field_insertion(), [street(), labelled_kitti(0)], kill=True)
     assert "near field" in str(failure.value)

@@ -397,8 +397,13 @@ class TerrainObstacles(MovedObstacles):
     def _terrain(self, context: CheckContext) -> Terrain:
         values = {
             key: self._param(context, key, "road shape", "road_terrain() or Terrain.params()")
-            for key in ("grade_percent", "grade_start_m", "grade_curve_m", "camber_percent",
-                        "crown_y_m")  # fmt: skip
+            for key in (
+                "grade_percent",
+                "grade_start_m",
+                "grade_curve_m",
+                "camber_percent",
+                "crown_y_m",
+            )
         }
         return Terrain(
             values["grade_percent"], values["grade_start_m"], values["grade_curve_m"],

@@ -45,7 +45,7 @@ from pytest_metamorphic.core.errors import InvalidArgument
 from pytest_metamorphic.lidar.judging.found import found_as
 from pytest_metamorphic.lidar.model.obstacles import Box, footprint_distances
 
-__all__ = ["WellSeen"]
+__all__ = ["WELL_SEEN", "WellSeen"]
 
 
 @dataclass(frozen=True)
@@ -123,3 +123,7 @@ class WellSeen:
             f"a {'/'.join(self.classes)} of >= {self.min_height:g} m seen by >= "
             f"{self.min_returns} returns spanning >= {self.min_height_share:.0%} of its height"
         )
+
+
+#: The defaults (module docstring), for relations given none.
+WELL_SEEN = WellSeen()

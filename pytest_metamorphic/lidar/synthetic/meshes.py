@@ -13,6 +13,7 @@ import trimesh
 from numpy.typing import NDArray
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.model.terrain import Terrain
 from pytest_metamorphic.lidar.synthetic.description import (
     _REFLECTIVITY,
     BACKGROUND_INSTANCE,
@@ -21,7 +22,6 @@ from pytest_metamorphic.lidar.synthetic.description import (
     Obstacle,
     Scene,
 )
-from pytest_metamorphic.lidar.model.terrain import Terrain
 
 __all__ = ["SceneMesh", "obstacle_geometry", "scene_mesh"]
 
@@ -218,7 +218,7 @@ def _ground(
             [[-e, -e, ground_z], [e, -e, ground_z], [e, e, ground_z], [-e, e, ground_z]]
         )
         return vertices, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
-    steps = int(math.ceil(extent / _TERRAIN_CELL))
+    steps = math.ceil(extent / _TERRAIN_CELL)
     xs = np.arange(-steps, steps + 1) * _TERRAIN_CELL
     ys = xs + (terrain.crown_y_m % _TERRAIN_CELL)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")

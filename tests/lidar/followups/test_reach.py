@@ -72,7 +72,10 @@ def test_far_field_places_lie_between_35_and_90_percent_of_the_far_limit() -> No
     frame = labelled_kitti(1)
     beams = frame_sensor(frame).sensor
     car = _solid("car close by")
-    for domain, far in ((DEFAULT_DOMAIN, beams.max_range), (OperatingDomain(max_range_m=100.0), 100.0)):
+    for domain, far in (
+        (DEFAULT_DOMAIN, beams.max_range),
+        (OperatingDomain(max_range_m=100.0), 100.0),
+    ):
         places = domain_placements(frame, car, reach="far field", domain=domain, layout=beams)
         assert places
         for place in places:

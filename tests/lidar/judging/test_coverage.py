@@ -60,7 +60,9 @@ def test_the_summary_names_what_no_follow_up_reached_and_the_json_keeps_the_coun
     test.relations["b"] = RelationStats(followups=2, coverage=dict(far))
     lines = summary.format_table()
     assert any(line.startswith("operating domain not reached") for line in lines)
-    assert "  judged distance 70 m and beyond: none of the 2 relation(s) that vary it (a; b)" in lines
+    assert (
+        "  judged distance 70 m and beyond: none of the 2 relation(s) that vary it (a; b)" in lines
+    )
     # One relation reached the near field: the run tested it, and no line names it.
     assert not any("0-5 m" in line for line in lines)
     # Merged across reports (xdist workers) and kept in the JSON rows.

@@ -141,9 +141,13 @@ def solid_road_users() -> tuple[ObjectTemplate, ...]:
         vertices, faces, reflectivity = obstacle_geometry(obstacle)
         templates.append(
             ObjectTemplate.from_mesh(
-                vertices, faces, label=obstacle.label, reflectivity=reflectivity,
-                source=f"rendered road users [{name}]", seen_range=math.hypot(x, y),
-            )  # fmt: skip
+                vertices,
+                faces,
+                label=obstacle.label,
+                reflectivity=reflectivity,
+                source=f"rendered road users [{name}]",
+                seen_range=math.hypot(x, y),
+            )
         )
     return tuple(templates)
 

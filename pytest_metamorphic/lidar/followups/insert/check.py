@@ -15,7 +15,7 @@ from pytest_metamorphic.lidar.judging.found import (
     found_as,
 )
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope, ScopeLike, as_scope
-from pytest_metamorphic.lidar.judging.well_seen import WellSeen
+from pytest_metamorphic.lidar.judging.well_seen import WELL_SEEN, WellSeen
 from pytest_metamorphic.lidar.model.obstacles import as_boxes
 
 __all__ = ["InsertedDetected", "PlacedObjectCheck"]
@@ -80,7 +80,7 @@ class InsertedDetected(PlacedObjectCheck):
         min_detected: float = 0.5,
         min_height_share: float = 0.8,
         classes: ClassRule = "own_or_unknown",
-        well_seen: WellSeen | None = WellSeen(),
+        well_seen: WellSeen | None = WELL_SEEN,
         scope: ScopeLike = "roi",
     ) -> None:
         super().__init__(
@@ -148,7 +148,8 @@ class InsertedDetected(PlacedObjectCheck):
                 return Verdict(
                     False,
                     self.name,
-                    f"{what} is found as an unknown obstacle although well seen ({seen.describe()}, "
+                    f"{what} is found as an unknown obstacle although well seen "
+                    f"({seen.describe()}, "
                     f"standing apart): a {insertion.box.label} demoted",
                     details,
                 )

@@ -8,6 +8,8 @@ downloaded from elsewhere is as safe to load as a point cloud.
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import math
 import os
@@ -126,7 +128,7 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
     if not all(math.isfinite(v) for v in numbers) or numbers[1] <= 0:
         raise DataError(f"{where}: view, range and bearing must be finite, range > 0", path=source)
     spacing = _spacing(entry.get("spacing"), where, source)
-    return ObjectTemplate(
+    template = ObjectTemplate(
         label=label,
         size=size,
         vertices=vertices.astype(np.float64),
@@ -136,8 +138,8 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
         range=numbers[1],
         bearing=numbers[2],
         source=str(entry.get("source", "")),
-        **spacing,
     )
+    return dataclasses.replace(template, **spacing) if spacing else template
 
 
 def _spacing(value: object, where: str, source: Path) -> dict[str, tuple[float, float]]:

@@ -67,7 +67,7 @@ def _outline(box: Box, step: float = 0.1) -> np.ndarray:
     corners = box.corners_bev()
     points = []
     for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
-        count = max(2, int(math.ceil(np.linalg.norm(b - a) / step)) + 1)
+        count = max(2, math.ceil(float(np.linalg.norm(b - a)) / step) + 1)
         points.append(np.linspace(a, b, count))
     return np.concatenate(points)
 

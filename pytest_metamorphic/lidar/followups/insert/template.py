@@ -100,8 +100,7 @@ class ObjectTemplate:
         f = np.asarray(faces, dtype=np.int64)
         if v.ndim != 2 or v.shape[1] != 3 or len(v) < 4 or f.ndim != 2 or f.shape[1] != 3:
             raise InvalidArgument(
-                f"a solid template needs (k, 3) vertices and (m, 3) faces, got {v.shape}, "
-                f"{f.shape}"
+                f"a solid template needs (k, 3) vertices and (m, 3) faces, got {v.shape}, {f.shape}"
             )
         low, high = v.min(axis=0), v.max(axis=0)
         size = (float(high[0] - low[0]), float(high[1] - low[1]), float(high[2]))

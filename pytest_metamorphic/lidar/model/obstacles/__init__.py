@@ -24,8 +24,8 @@ from pytest_metamorphic.lidar.model.obstacles.matching import (
     unmatched_twins,
 )
 from pytest_metamorphic.lidar.model.obstacles.points import (
-    box_support,
     box_gap,
+    box_support,
     footprint_distances,
     points_in_boxes,
     share_inside,
@@ -43,9 +43,9 @@ __all__ = [
     "as_boxes",
     "bev_intersection",
     "bev_iou",
+    "box_gap",
     "box_support",
     "center_distances",
-    "box_gap",
     "footprint_distances",
     "points_in_boxes",
     "share_inside",
