@@ -9,7 +9,6 @@ downloaded from elsewhere is as safe to load as a point cloud.
 from __future__ import annotations
 
 import dataclasses
-
 import json
 import math
 import os
@@ -139,7 +138,7 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
         bearing=numbers[2],
         source=str(entry.get("source", "")),
     )
-    return dataclasses.replace(template, **spacing) if spacing else template
+    return dataclasses.replace(template, spacing=spacing["spacing"]) if spacing else template
 
 
 def _spacing(value: object, where: str, source: Path) -> dict[str, tuple[float, float]]:
