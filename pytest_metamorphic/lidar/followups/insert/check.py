@@ -139,10 +139,11 @@ class InsertedDetected(PlacedObjectCheck):
         origin = "" if template is None else f", a labelled {template.label} from {template.origin}"
         what = f"the inserted {insertion.box.describe()} ({returns} returns{origin})"
         seen = self.well_seen
-        reported = {box.label for box in boxes} | {
-            box.label for box in as_boxes(source_output, "source")
-        }
-        if seen is not None and seen.applies(insertion.box, insertion.points, reported):
+        if (
+            seen is not None
+            and seen.applies(insertion.box, insertion.points)
+            and insertion.box.label in _reported(boxes, source_output)
+        ):
             details["well_seen"] = True
             if seen.demoted(insertion.box, insertion.points[:, :3], boxes):
                 return Verdict(
@@ -172,3 +173,8 @@ class InsertedDetected(PlacedObjectCheck):
             f"{what} is not detected: {found.share:.0%} of its returns lie in follow-up obstacles",
             details,
         )
+
+
+def _reported(boxes: list[Any], source_output: Any) -> set[str]:
+    """The classes a detector showed it has: those of its follow-up and source obstacles."""
+    return {box.label for box in boxes} | {box.label for box in as_boxes(source_output, "source")}
