@@ -70,7 +70,7 @@ def road_terrain(
     Every obstacle and background object stands on the new road, tilted with it. On a
     recording the follow-up is not applicable, with the reason (a recorded ground cannot
     be bent honestly): pass rendered streets, e.g. with the clutter of a real one
-    (:func:`~pytest_metamorphic.lidar.synthetic.street_scene`), rendered with your
+    (:func:`~pytest_metamorphic.lidar.synthetic.streetscape.street_scene`), rendered with your
     sensor. Opt-in for that reason: not in
     :func:`~pytest_metamorphic.relations.lidar.lidar_relations`.
 
