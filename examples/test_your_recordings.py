@@ -29,6 +29,7 @@ says so in the summary (``n/a``, "NOTHING TESTED ... because ..."), never "passe
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 import pytest
@@ -39,14 +40,25 @@ from scipy import ndimage
 import conftest
 from pytest_metamorphic import Followup, MetamorphicRelation, MetamorphicViolation, metamorphic
 from pytest_metamorphic.lidar.followups.faults import DropRings
+from pytest_metamorphic.lidar.followups.insert import InsertedDetected, InsertObject, Placement
+from pytest_metamorphic.lidar.followups.insert.catalogue import (
+    road_user_templates,
+    solid_road_users,
+)
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
+from pytest_metamorphic.lidar.model.domain import OperatingDomain
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.obstacles import Box, Label
 from pytest_metamorphic.lidar.model.sensors import OS1_128, VLP16
 from pytest_metamorphic.lidar.roi import corridor_roi
 from pytest_metamorphic.lidar.synthetic import render
 from pytest_metamorphic.lidar.synthetic.layout import random_scene
-from pytest_metamorphic.relations.lidar import CoveredObstaclesKept, lidar_relations, mr1_subset
+from pytest_metamorphic.relations.lidar import (
+    CoveredObstaclesKept,
+    lidar_relations,
+    mr1_subset,
+    object_insertion,
+)
 
 DATA = conftest.SHARED_DATA
 RECORDINGS = {
@@ -103,6 +115,24 @@ def _box(part: np.ndarray) -> Box:
     return Box(tuple((lo + hi) / 2), (length, width, float(size[2])), yaw, label)
 
 
+#: What my detector claims to cover: its own range (it drops returns beyond 50 m), not
+#: the sensor's 100-120 m.
+DOMAIN = OperatingDomain(max_range_m=50.0)
+
+# Where the sensor sees no ground around an object, my ground (each 2 m cell's lowest
+# return) is the object's own lowest return, and only what stands 0.3 m above that is
+# kept: within 6.5 m of a VLP-16 1.73 m up (its lowest laser meets the road there) and
+# around a car 35 m away (two of its lasers meet the car, none the road beside it). The
+# search found both (the two tests after the next); my detector does not claim the near
+# field nor the far field: objects are inserted near the range they were seen from.
+AS_SEEN = object_insertion(reach=("as seen",), domain=DOMAIN)
+RELATIONS = [
+    AS_SEEN if relation.name == AS_SEEN.name else relation
+    for relation in lidar_relations(domain=DOMAIN)
+    if "near field" not in relation.name
+]
+
+
 @functools.cache
 def recorded_frames() -> tuple[Frame, ...]:
     """One sweep of each recording, its road the 7 m corridor ahead."""
@@ -117,7 +147,7 @@ def recorded_frames() -> tuple[Frame, ...]:
           suppress_health_check=LIDAR)  # fmt: skip
 @metamorphic(
     source=st.deferred(lambda: st.sampled_from(recorded_frames())),
-    relations=lidar_relations(),
+    relations=RELATIONS,
     followups=1,
 )
 def test_my_detector_on_my_recordings(frame: Frame) -> list[Box]:
@@ -140,7 +170,7 @@ def rendered_frames() -> tuple[Frame, ...]:
 # Dead lasers are not claimed for this detector on a VLP-16: its ground is each 2 m
 # cell's lowest return, and a cell whose only ground returns came from the lost laser
 # takes its ground from the object standing in it (the next test).
-CLAIMED = [r for r in lidar_relations() if not r.name.startswith("beams missing")]
+CLAIMED = [r for r in RELATIONS if not r.name.startswith("beams missing")]
 
 
 @settings(max_examples=4, database=None, deadline=None, derandomize=True,
@@ -175,6 +205,49 @@ def test_a_dead_laser_lifts_my_detectors_ground_into_an_object() -> None:
 
     with pytest.raises(MetamorphicViolation, match=r"unknown at \(-13\.\d, -0\.\d\) lost"):
         check()
+
+
+def _inserted(frame: Frame, insertion: InsertObject) -> MetamorphicRelation:
+    """A relation whose one follow-up is ``frame`` with ``insertion``, judged as
+    ``near_field_insertion()`` judges (found as any class)."""
+    return MetamorphicRelation(
+        f"{insertion.box.describe()} inserted => it is detected",
+        lambda _: st.just(Followup(insertion.apply(frame), insertion.params())),
+        InsertedDetected(classes="any"),
+    )
+
+
+def _check_once(frame: Frame, relation: MetamorphicRelation) -> None:
+    @settings(max_examples=1, database=None, phases=[Phase.generate], deadline=None,
+              suppress_health_check=LIDAR)  # fmt: skip
+    @metamorphic(source=st.just(frame), relations=[relation], followups=1)
+    def check(frame: Frame) -> list[Box]:
+        return my_detector(frame)
+
+    check()
+
+
+def test_a_child_in_front_of_the_bumper_is_its_own_ground() -> None:
+    # 3.5 m ahead of a VLP-16 1.73 m up, a 1.15 m child holds 68 returns over its top
+    # 0.36 m, and no laser meets the road in its 2 m cell: the cell's lowest return is the
+    # child's chin, and nothing stands 0.3 m above it.
+    frame = rendered_frames()[0]
+    child = next(t for t in solid_road_users() if t.source.endswith("[child]"))
+    insertion = InsertObject.onto(frame, child, Placement(0.0, 3.5, -1.70), layout=VLP16)
+    with pytest.raises(MetamorphicViolation, match=r"pedestrian at \(3\.5, 0\.0\).* not detected"):
+        _check_once(frame, _inserted(frame, insertion))
+
+
+def test_a_parked_row_35_m_away_is_its_own_ground() -> None:
+    # Two of a VLP-16's lasers meet a row of parked cars 35 m ahead (at 0.2 m and 1.2 m
+    # above the road), none the road between them: a cell holding only the upper one
+    # takes it for the ground. The search found it 51 degrees to the left, on the road.
+    frame = rendered_frames()[0]
+    row = next(t for t in road_user_templates() if t.source.endswith("[row of parked cars]"))
+    place = Placement(math.radians(51), 35.0, -1.70)
+    insertion = InsertObject.onto(frame, row, place, layout=VLP16)
+    with pytest.raises(MetamorphicViolation, match=r"car at \(22\.0, 27\.2\).* not detected"):
+        _check_once(frame, _inserted(frame, insertion))
 
 
 #: A realistic fault: ground cells of 8 m instead of 2 m. A cell that straddles the road's

@@ -118,7 +118,8 @@ def inserted_objects(
       (:func:`~pytest_metamorphic.lidar.followups.insert.catalogue.solid_road_users`,
       with ``road_users``; solid templates among ``objects``) within the first metres on
       every side of the car, lorries and buses with their near end there (dense);
-    * ``"far field"``: any of them 35-90 % of the way to the far limit.
+    * ``"far field"``: any of them 35-90 % of the way to the far limit, where the
+      sensor's beams still leave ``min_returns`` on it.
 
     Shrinks toward the first band, the first object, the smallest move from where it was
     seen and the first scale (1). Not applicable (and reported so) when there is no object
@@ -175,9 +176,14 @@ def inserted_objects(
 
         def place(band: Reach, index: int, chosen: list[Any]) -> st.SearchStrategy[Followup]:
             template, places = chosen[index]
-            return st.tuples(st.sampled_from(places), st.sampled_from(factors)).map(
+            drawn = st.tuples(st.sampled_from(places), st.sampled_from(factors)).map(
                 lambda drawn: insert(band, template, *drawn)
             )
+            if band != "far field":
+                return drawn
+            # Far shares are kept where the object in the open holds 1.2 x min_returns;
+            # the frame may still block a few of its beams at one bearing.
+            return drawn.filter(lambda f: f.params["inserted_returns"] >= min_returns)
 
         def pick(option: tuple[Reach, list[Any]]) -> st.SearchStrategy[Followup]:
             band, chosen = option
@@ -217,7 +223,18 @@ def _insertion_options(
     for band in reaches:
         pool = solid if band == "near field" else found
         places = [
-            (t, domain_placements(frame, t, reach=band, domain=domain, scope=scope, layout=beams))
+            (
+                t,
+                domain_placements(
+                    frame,
+                    t,
+                    reach=band,
+                    domain=domain,
+                    scope=scope,
+                    layout=beams,
+                    min_returns=min_returns,
+                ),
+            )
             for t in pool
         ]
         kept = [(t, p) for t, p in places if p]
@@ -259,6 +276,7 @@ def relocated_objects(
     min_returns: int = 30,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
+    domain: OperatingDomain = DEFAULT_DOMAIN,
 ) -> st.SearchStrategy[Followup]:
     """The frame with one of its cars, pedestrians or cyclists moved
     (:class:`~pytest_metamorphic.lidar.followups.insert.relocation.RelocateObject`): nearer or
@@ -266,8 +284,10 @@ def relocated_objects(
     (``kinds``), onto free ground judged by ``scope``, in clear view, re-cast with
     ``layout``'s beams (default: the frame's sensor). The objects are
     :func:`~pytest_metamorphic.lidar.followups.edit.removal_candidates` (labels, else the
-    reference pipeline's proposals) whose returns make a template of >= ``min_returns``.
-    Shrinks toward the nearest object, the first kind and the smallest move. Not
+    reference pipeline's proposals) whose returns make a template of >= ``min_returns``,
+    never beyond 90 % of ``domain``'s far limit (``max_range_m``, by default the
+    sensor's range). Shrinks toward the nearest object, the first kind and the smallest
+    move. Not
     applicable (and reported so) when no object can move or the sensor is unknown."""
     frame = _check_frame(frame)
     if layout is not None and not isinstance(layout, BeamLayout):
@@ -279,15 +299,21 @@ def relocated_objects(
         raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 10")
     RemoveObject(Box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), margin)  # validates margin
     chosen = as_scope(scope)
+    if not isinstance(domain, OperatingDomain):
+        raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
+    far = domain.max_range_m
+    if not isinstance(domain, OperatingDomain):
+        raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
+    far = domain.max_range_m
 
     def moves() -> st.SearchStrategy[Followup]:
         beams = layout if layout is not None else frame_sensor(frame).sensor
         if not isinstance(beams, BeamLayout):
             return st.just(Followup.not_applicable(frame, _no_beams(frame)))
-        key = ("relocate", chosen_kinds, margin, min_returns, chosen, id(beams))
+        key = ("relocate", chosen_kinds, margin, min_returns, chosen, id(beams), far)
         cache = _MOVABLE.setdefault(frame, {})
         if key not in cache:
-            cache[key] = _movables(frame, chosen_kinds, margin, min_returns, beams, chosen)
+            cache[key] = _movables(frame, chosen_kinds, margin, min_returns, beams, chosen, far)
         movables = cache[key]
         if not movables:
             return st.just(Followup.not_applicable(frame, _nothing_moves(frame, chosen)))
@@ -323,11 +349,16 @@ def _movables(
     min_returns: int,
     beams: BeamLayout,
     scope: ObstacleScope,
+    far: float | None,
 ) -> list[tuple[Movable, dict[MoveKind, list[Move]]]]:
     found = []
     for box in removal_candidates(frame, scope=scope):
         item = Movable.of(frame, box, margin=margin, min_returns=min_returns)
-        moves = {} if item is None else item.moves(layout=beams, scope=scope, kinds=kinds)
+        moves = (
+            {}
+            if item is None
+            else item.moves(layout=beams, scope=scope, kinds=kinds, max_range=far)
+        )
         if item is not None and moves:
             found.append((item, moves))
     return found

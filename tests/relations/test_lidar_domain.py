@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
@@ -63,6 +64,36 @@ def test_each_near_field_fault_is_killed_by_the_near_field_insertion(
 def test_the_near_field_insertion_is_in_the_library() -> None:
     names = [relation.name for relation in lidar_relations()]
     assert "an object inserted in the near field => it is detected and the others kept" in names
+
+
+def test_the_library_places_and_moves_objects_within_the_domains_far_limit() -> None:
+    # A detector that claims 40 m: no insertion nor move beyond 90 % of it.
+    domain = OperatingDomain(max_range_m=40.0)
+    names = ("an object inserted =>", "an object moved =>")
+    frame = labelled_kitti(3)
+    for bound in (None, domain):
+        relations = [r for r in lidar_relations(domain=bound) if r.name.startswith(names)]
+        assert len(relations) == 2
+        farthest = 0.0
+
+        @settings(max_examples=40, database=None, derandomize=True, deadline=None,
+                  phases=[Phase.generate], suppress_health_check=list(HealthCheck))  # fmt: skip
+        @given(st.sampled_from(relations).flatmap(lambda r: r.followup(frame)))
+        def draw(followup: Any) -> None:
+            nonlocal farthest
+            if followup.skipped is not None:
+                return
+            edit = followup.params.get("insert_object") or followup.params["relocate_object"]
+            box = getattr(edit, "insertion", edit).box
+            farthest = max(farthest, float(np.hypot(*box.center[:2])))
+
+        draw()
+        if bound is None:
+            assert farthest > 40.0  # the HDL-64E's own 120 m reach farther
+        else:
+            assert 0 < farthest <= 0.9 * 40.0 + 0.5
+    with pytest.raises(InvalidArgument, match="domain="):
+        lidar_relations(domain={"max_range_m": 40})  # type: ignore[arg-type]
 
 
 def _rendered() -> list[Any]:

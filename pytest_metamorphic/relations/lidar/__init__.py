@@ -75,6 +75,7 @@ from pytest_metamorphic.lidar.judging.tolerance import (
     ToleranceLike,
     as_tolerance,
 )
+from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
 from pytest_metamorphic.relations.lidar.faults import (
     PACKET_DEGREES,
     CoveredObstaclesKept,
@@ -170,6 +171,7 @@ def lidar_relations(
     scope: ScopeLike = "roi",
     tolerance: ToleranceLike = "exact",
     history: bool = True,
+    domain: OperatingDomain | None = None,
 ) -> list[MetamorphicRelation]:
     """The whole library, for ``@metamorphic(relations=lidar_relations())``.
 
@@ -180,9 +182,16 @@ def lidar_relations(
     (geometric pipelines) or ``"learned"`` (neural networks, whose outputs jitter: see
     :mod:`pytest_metamorphic.lidar.judging.tolerance`); ``history``: whether to include
     :func:`history_independence` and :func:`history_under_faults` (False for a tracker
-    or a detector that accumulates sweeps on purpose: they are not per-frame).
+    or a detector that accumulates sweeps on purpose: they are not per-frame); ``domain``
+    the :class:`~pytest_metamorphic.lidar.model.domain.OperatingDomain` the insertions,
+    the relocation and the sensor poses cover (default
+    :data:`~pytest_metamorphic.lidar.model.domain.DEFAULT_DOMAIN`; e.g. ``max_range_m``
+    for a detector that claims less than its sensor's range, ``near_field_m``).
     """
     as_scope(scope)
+    if domain is not None and not isinstance(domain, OperatingDomain):
+        raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain or None")
+    chosen = DEFAULT_DOMAIN if domain is None else domain
     if not isinstance(history, bool):
         raise InvalidArgument(f"history={history!r} must be True or False")
     profile = as_tolerance(tolerance)
@@ -214,11 +223,17 @@ def lidar_relations(
         packet_loss(scope=scope),
         range_quantization(scope=scope),
         object_removal(scope=scope, matcher=kept),
-        object_insertion(scope=scope, matcher=kept),
-        near_field_insertion(scope=scope, matcher=kept),
-        object_relocation(scope=scope, matcher=kept, center_tolerance=place, yaw_tolerance=heading),
+        object_insertion(scope=scope, matcher=kept, domain=chosen),
+        near_field_insertion(scope=scope, matcher=kept, domain=chosen),
+        object_relocation(
+            scope=scope,
+            matcher=kept,
+            center_tolerance=place,
+            yaw_tolerance=heading,
+            domain=chosen,
+        ),
         adverse_weather(scope=scope),
-        sensor_pose(scope=scope, center_tolerance=place, **posed),
+        sensor_pose(scope=scope, center_tolerance=place, domain=chosen, **posed),
         *([history_independence(), history_under_faults()] if history else []),
     ]
 

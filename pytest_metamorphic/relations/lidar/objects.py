@@ -219,6 +219,7 @@ def object_relocation(
     matcher: Matcher | None = None,
     layout: BeamLayout | None = None,
     scope: ScopeLike = "roi",
+    domain: OperatingDomain = DEFAULT_DOMAIN,
     name: str = "an object moved => it is found where it went, the others kept",
 ) -> MetamorphicRelation:
     """Moving one real object of the sweep moves its detection, and nothing else changes
@@ -228,8 +229,8 @@ def object_relocation(
     pedestrian or cyclist out of the sweep (its beams run on to the ground behind it, as
     :func:`object_removal` does) and re-casts its own returns for the frame's sensor
     (``layout``) after one move of ``kinds``: 5-50 % nearer or 5-200 % farther along its
-    bearing (the far field; never into the near field, whose whole meshes
-    :func:`near_field_insertion` places),
+    bearing (the far field, within 90 % of ``domain``'s far limit; never into the near
+    field, whose whole meshes :func:`near_field_insertion` places),
     2-180 degrees around the sensor at the same range, or turned 5-30 degrees in place
     (:class:`~pytest_metamorphic.lidar.followups.insert.relocation.RelocateObject`). The
     new place is free ground judged by ``scope``, in clear view, overlapping nothing.
@@ -259,11 +260,12 @@ def object_relocation(
         center_tolerance=center_tolerance, yaw_tolerance=yaw_tolerance, scope=scope,
     )  # fmt: skip
     relation = check & OthersKept(clearance=clearance, matcher=matcher, scope=scope)
-    relocated_objects(_PROBE, kinds=kinds, min_returns=min_points, layout=layout)
+    relocated_objects(_PROBE, kinds=kinds, min_returns=min_points, layout=layout, domain=domain)
 
     def followup(frame: Any) -> st.SearchStrategy[Followup]:
         return relocated_objects(
-            _frame(frame), kinds=kinds, min_returns=min_points, layout=layout, scope=scope
-        )
+            _frame(frame), kinds=kinds, min_returns=min_points, layout=layout, scope=scope,
+            domain=domain,
+        )  # fmt: skip
 
     return lidar_relation(name, followup, relation)

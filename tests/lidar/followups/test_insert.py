@@ -26,12 +26,17 @@ from pytest_metamorphic.lidar.followups.insert import (
     Placement,
     free_placements,
 )
-from pytest_metamorphic.lidar.followups.insert.catalogue import fits_class, road_user_templates
+from pytest_metamorphic.lidar.followups.insert.catalogue import (
+    fits_class,
+    road_user_templates,
+    solid_road_users,
+)
+from pytest_metamorphic.lidar.followups.insert.check import MIN_SPAN
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.judging.evaluation import kitti_label_region
 from pytest_metamorphic.lidar.judging.well_seen import WellSeen
 from pytest_metamorphic.lidar.model.obstacles import Box
-from pytest_metamorphic.lidar.model.sensors import frame_sensor
+from pytest_metamorphic.lidar.model.sensors import VLP16, frame_sensor
 from pytest_metamorphic.lidar.roi import corridor_roi
 from pytest_metamorphic.lidar.synthetic import Obstacle, Scene, render
 from pytest_metamorphic.lidar.systems.perception import ReferencePerception
@@ -283,6 +288,24 @@ def test_a_reduced_insertion_is_judged_only_while_it_spans_the_objects_height() 
     assert again.span == lowest.span
     with pytest.raises(InvalidArgument, match="min_height_share"):
         InsertedDetected(min_height_share=1.5)
+
+
+def test_an_object_the_sensor_sees_only_a_slice_of_is_not_judged() -> None:
+    """Just ahead of a VLP-16's bumper, a child's head is all its lowest laser meets: 73
+    returns over 23 cm 3.25 m ahead, below any detector's minimum obstacle height. Judging it would
+    call a detector that sees no obstacle there wrong (found on a grid detector)."""
+    frame = street()
+    child = next(t for t in solid_road_users() if t.source.endswith("[child]"))
+    insertion = InsertObject.onto(frame, child, Placement(0.0, 3.25, GROUND_Z), layout=VLP16)
+    assert len(insertion) >= 30 and insertion.span is not None and insertion.span < MIN_SPAN
+    context = CheckContext(frame, insertion.apply(frame), insertion.params(), 0)
+    verdict = InsertedDetected(classes="any").check([], [], context)
+    assert verdict.holds and verdict.details["judged"] == 0
+    assert f"less than {MIN_SPAN} m" in verdict.explanation
+    # A step back, its head and shoulders: an obstacle, judged (nothing found: violated).
+    back = InsertObject.onto(frame, child, Placement(0.0, 4.5, GROUND_Z), layout=VLP16)
+    context = CheckContext(frame, back.apply(frame), back.params(), 0)
+    assert not InsertedDetected(classes="any").check([], [], context).holds
 
 
 def test_an_inserted_pedestrian_reported_as_a_car_is_a_violation() -> None:

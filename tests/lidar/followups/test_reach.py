@@ -11,10 +11,12 @@ import pytest
 from pytest_metamorphic import InvalidArgument
 from pytest_metamorphic.lidar.followups.insert import InsertObject, object_templates
 from pytest_metamorphic.lidar.followups.insert.catalogue import solid_road_users
+from pytest_metamorphic.lidar.followups.insert.check import MIN_SPAN
+from pytest_metamorphic.lidar.followups.insert.insertion import returns_in_the_open
 from pytest_metamorphic.lidar.followups.insert.reach import _gap, domain_placements, ego_box
 from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
 from pytest_metamorphic.lidar.model.obstacles import Box
-from pytest_metamorphic.lidar.model.sensors import frame_sensor
+from pytest_metamorphic.lidar.model.sensors import VLP16, frame_sensor
 from pytest_metamorphic.lidar.synthetic.meshes import obstacle_geometry
 from tests.core.lidar_cases import labelled_kitti, street
 
@@ -82,6 +84,30 @@ def test_far_field_places_lie_between_35_and_90_percent_of_the_far_limit() -> No
             assert 0.35 * far - 1e-6 <= place.range <= 0.9 * far + 1e-6
 
 
+def test_an_object_goes_only_where_the_sensor_leaves_enough_of_it_to_judge() -> None:
+    # A VLP-16's 16 lasers leave 23 returns on an adult 35 m away and 9 at 45 m; its
+    # lowest laser meets a child's head, not its body, just ahead of the bumper.
+    frame = street()
+    for name, reach in (("adult close by", "far field"), ("child", "near field")):
+        template = _solid(name)
+        places = domain_placements(
+            frame, template, reach=reach, layout=VLP16, min_returns=30, limit=2000
+        )
+        unscreened = domain_placements(frame, template, reach=reach, layout=VLP16, limit=2000)
+        assert len(places) < len(unscreened)
+        for place in places:
+            returns = returns_in_the_open(template, place, layout=VLP16)
+            assert len(returns) >= 36 and np.ptp(returns[:, 2]) >= MIN_SPAN
+    # On a KITTI sweep, as the frame casts them: end-on, a van 35 m away holds too few.
+    kitti = labelled_kitti(1)
+    for name in ("van", "lorry", "bus"):
+        template = _solid(name)
+        places = domain_placements(kitti, template, reach="far field", layout=VLP16, min_returns=30)
+        cast = [len(InsertObject.onto(kitti, template, place, layout=VLP16)) for place in places]
+        assert (name == "van") == (not cast)
+        assert all(count >= 30 for count in cast)
+
+
 def test_bad_arguments_name_the_argument() -> None:
     frame = street()
     adult = _solid("adult close by")
@@ -89,5 +115,7 @@ def test_bad_arguments_name_the_argument() -> None:
         domain_placements(frame, adult, reach="behind")  # type: ignore[arg-type]
     with pytest.raises(InvalidArgument, match="domain="):
         domain_placements(frame, adult, reach="far field", domain={"near": 5})  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="min_returns="):
+        domain_placements(frame, adult, reach="far field", min_returns=-1)
     with pytest.raises(InvalidArgument, match="ego_size_m"):
         OperatingDomain(ego_size_m=(4.4, 0))

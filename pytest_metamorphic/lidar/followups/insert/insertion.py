@@ -28,7 +28,7 @@ from pytest_metamorphic.lidar.model.obstacles import Box, footprint_distances
 from pytest_metamorphic.lidar.synthetic.meshes import SceneMesh
 from pytest_metamorphic.lidar.synthetic.raycast import cast_rays
 
-__all__ = ["INSERTED_INSTANCE", "InsertObject"]
+__all__ = ["INSERTED_INSTANCE", "InsertObject", "returns_in_the_open"]
 
 INSERTED_INSTANCE = -4
 """``instance`` field value of inserted returns (rendered frames carry the field)."""
@@ -230,6 +230,18 @@ class InsertObject:
 
     def __repr__(self) -> str:
         return f"InsertObject({self.box.describe()}, {len(self.points)} returns)"
+
+
+def returns_in_the_open(
+    template: ObjectTemplate, placement: Placement, *, layout: BeamLayout = HDL64E
+) -> NDArray[np.float64]:
+    """(k, 3) float64: where ``layout``'s beams meet ``template`` standing at ``placement``
+    with nothing in front of it, the most an insertion there can hold (one cast of the
+    object alone, milliseconds; :meth:`InsertObject.onto` also casts the frame)."""
+    mesh = template.mesh_at(placement)
+    low, high = _bearing_window(mesh.vertices, placement.bearing)
+    direction, _, distance = _returns(mesh, layout, placement.bearing, low, high)
+    return direction * distance[:, None]
 
 
 def _span(points: NDArray[np.float32]) -> float:

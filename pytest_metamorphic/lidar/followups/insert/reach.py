@@ -20,7 +20,10 @@ blind-zone handling, cluster-size caps, range cut-offs) are never triggered.
 * ``"far field"``: any template from 35 % to 90 % of the far limit (``max_range_m``, by
   default the sensor's own range: 42-108 m for an HDL-64E's 120 m), every 5 degrees, on
   ground the sensor sees there and in scope (a region that ends at 70 m, as KITTI's
-  labelled wedge does, takes the nearer of them).
+  labelled wedge does, takes the nearer of them), at the ranges where the sensor's beams
+  still leave ``min_returns`` on it (with 20 % to spare for returns the frame blocks):
+  a pedestrian of 9 returns at 45 m on a VLP-16 judges nothing, so it is not placed
+  there.
 
 Ground under a near-field placement is the nearest ground the sensor sees
 (:attr:`~pytest_metamorphic.lidar.followups.insert.placement._TargetGround.nearest_ground`):
@@ -35,6 +38,8 @@ from typing import Literal
 import numpy as np
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.lidar.followups.insert.check import MIN_SPAN
+from pytest_metamorphic.lidar.followups.insert.insertion import returns_in_the_open
 from pytest_metamorphic.lidar.followups.insert.placement import free_placements, ground_of
 from pytest_metamorphic.lidar.followups.insert.template import ObjectTemplate, Placement
 from pytest_metamorphic.lidar.judging.scope import ScopeLike, as_scope
@@ -54,6 +59,7 @@ _NEAR_BEARINGS = 24  # every 15 degrees
 _FAR_STEP = 5.0  # degrees between far-field bearings
 _FAR_SHARES = (0.35, 0.45, 0.55, 0.65, 0.75, 0.9)  # of the far limit
 _SCOPE_MARGIN = 0.2  # metres a placed footprint keeps inside the scope
+_RETURNS_SPARE = 1.2  # far shares must leave this times min_returns in the open
 
 
 def ego_box(domain: OperatingDomain = DEFAULT_DOMAIN) -> Box:
@@ -126,6 +132,7 @@ def domain_placements(
     scope: ScopeLike = "roi",
     layout: BeamLayout = HDL64E,
     limit: int = 32,
+    min_returns: int = 0,
 ) -> list[Placement]:
     """Up to ``limit`` free places for ``template`` in ``frame`` within ``reach`` (module
     docstring), each on free ground (no return more than 0.3 m above the local ground in
@@ -134,7 +141,14 @@ def domain_placements(
 
     ``"as seen"`` is :func:`free_placements`; ``"near field"`` takes solid templates only
     (any other gives none) and orders its places from straight ahead round to behind;
-    ``"far field"`` goes from the nearest share of the far limit outward."""
+    ``"far field"`` goes from the nearest share of the far limit outward and keeps the
+    shares where ``layout``'s beams leave at least 1.2 times ``min_returns`` on the
+    object in the open, over at least
+    :data:`~pytest_metamorphic.lidar.followups.insert.check.MIN_SPAN` of its height
+    (:func:`~pytest_metamorphic.lidar.followups.insert.insertion.returns_in_the_open`,
+    cast once per range, turn and ground height); so does
+    the near field, where a child in front of the bumper is below a VLP-16's lowest
+    laser but for the top of its head."""
     if not isinstance(frame, Frame):
         raise InvalidArgument(f"frame must be a Frame, got {type(frame).__name__}")
     if not isinstance(template, ObjectTemplate):
@@ -143,6 +157,8 @@ def domain_placements(
         raise InvalidArgument(f"reach={reach!r} must be one of {REACHES}")
     if not isinstance(domain, OperatingDomain):
         raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
+    if isinstance(min_returns, bool) or not isinstance(min_returns, int) or min_returns < 0:
+        raise InvalidArgument(f"min_returns={min_returns!r} must be an int >= 0")
     if reach == "as seen":
         return free_placements(frame, template, scope=scope, layout=layout, limit=limit)
     chosen = as_scope(scope)
@@ -167,6 +183,7 @@ def domain_placements(
             for turn in sorted(range(-steps, steps), key=abs)
         ]
         stand = ground.ground_under
+    enough = _EnoughReturns(template, layout, min_returns)
     found: list[Placement] = []
     for candidate in candidates:
         probe = template.box_at(candidate)
@@ -178,7 +195,35 @@ def domain_placements(
         # centimetres outside a wedge's tip holds most of its returns.
         if not chosen.judged([template.box_at(placement).grown(_SCOPE_MARGIN)], frame)[0]:
             continue
+        if not enough(placement):
+            continue
         found.append(placement)
         if len(found) == limit:
             break
     return found
+
+
+class _EnoughReturns:
+    """Whether ``template`` at a placement is judged in the open: it holds ``min_returns``
+    (with 20 % to spare) spanning :data:`~pytest_metamorphic.lidar.followups.insert.check.MIN_SPAN`
+    or more (not the top of a child's head below a VLP-16's lowest laser). Cast once per
+    range, turn and ground height (to 5 cm), at the first bearing asked (the count
+    barely changes with the bearing; the ring pattern does with range and height)."""
+
+    def __init__(self, template: ObjectTemplate, layout: BeamLayout, min_returns: int) -> None:
+        self.template, self.layout, self.min_returns = template, layout, min_returns
+        self.judged: dict[tuple[float, float, int], bool] = {}
+
+    def __call__(self, placement: Placement) -> bool:
+        if self.min_returns == 0:
+            return True
+        key = (
+            round(placement.range, 2),
+            round(placement.turn, 3),
+            round(placement.ground_z / 0.05),
+        )
+        if key not in self.judged:
+            points = returns_in_the_open(self.template, placement, layout=self.layout)
+            span = float(np.ptp(points[:, 2])) if len(points) else 0.0
+            self.judged[key] = len(points) >= _RETURNS_SPARE * self.min_returns and span >= MIN_SPAN
+        return self.judged[key]

@@ -294,20 +294,23 @@ class Movable:
         scope: ObstacleScope,
         kinds: Sequence[MoveKind] = MOVE_KINDS,
         limit: int = 24,
+        max_range: float | None = None,
     ) -> dict[MoveKind, list[Move]]:
         """For each of ``kinds``, up to ``limit`` moves that leave the object on free
         ground (no return above the local ground in its footprint grown by 0.5 m), in
-        clear view, judged by ``scope`` and within the sensor's range, smallest first."""
+        clear view, judged by ``scope`` and within 90 % of the far limit (the sensor's
+        range, or ``max_range`` where nearer: the operating domain's), smallest first."""
+        far = layout.max_range if max_range is None else min(max_range, layout.max_range)
         found: dict[MoveKind, list[Move]] = {}
         for kind in kinds:
-            moves = [move for move in _candidates(kind) if self._free(move, layout, scope)]
+            moves = [move for move in _candidates(kind) if self._free(move, layout, scope, far)]
             if moves:
                 found[kind] = moves[:limit]
         return found
 
-    def _free(self, move: Move, layout: BeamLayout, scope: ObstacleScope) -> bool:
+    def _free(self, move: Move, layout: BeamLayout, scope: ObstacleScope, far: float) -> bool:
         placement = move.placement(self.template, 0.0)
-        if not layout.min_range + 2.0 < placement.range < 0.9 * layout.max_range:
+        if not layout.min_range + 2.0 < placement.range < 0.9 * far:
             return False
         if _free_ground(self.template, move, self.ground, self.box) is None:
             return False
