@@ -184,8 +184,8 @@ def _slice(span: float, whole: float | None) -> str:
     """Why an object whose returns span ``span`` metres (of ``whole``) is not judged."""
     if span < MIN_SPAN:
         return (
-            f"its returns span {span:.2f} m, less than {MIN_SPAN} m: a slice of the object "
-            "(below a detector's minimum obstacle height), not judged"
+            f"its returns span {span:.2f} m, less than {MIN_SPAN} m (below a detector's "
+            "minimum obstacle height): a slice of the object, not judged"
         )
     return (
         f"its returns span {span:.2f} m of the {whole or 0:.2f} m all its returns spanned: a "
