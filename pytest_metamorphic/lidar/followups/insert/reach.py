@@ -33,6 +33,7 @@ the road under the car is taken to be as high as just beyond it.
 from __future__ import annotations
 
 import math
+import weakref
 from typing import Literal
 
 import numpy as np
@@ -89,7 +90,20 @@ def _gap(a: Box, b: Box) -> float:
     )
 
 
-def _near_candidates(
+def _near_candidates(template: ObjectTemplate, domain: OperatingDomain) -> list[Placement]:
+    """:func:`_near_placements`, once per template and domain (they depend on no frame)."""
+    known = _NEAR_PLACES.setdefault(template, {})
+    if domain not in known:
+        known[domain] = [placement for _, placement in _near_placements(template, domain)]
+    return known[domain]
+
+
+_NEAR_PLACES: weakref.WeakKeyDictionary[ObjectTemplate, dict[OperatingDomain, list[Placement]]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _near_placements(
     template: ObjectTemplate, domain: OperatingDomain
 ) -> list[tuple[float, Placement]]:
     """(order key, placement at ground 0) in the near field: per bearing and way round,
@@ -166,7 +180,7 @@ def domain_placements(
     if reach == "near field":
         if not template.solid:
             return []
-        candidates = [placement for _, placement in _near_candidates(template, domain)]
+        candidates = _near_candidates(template, domain)
         stand = ground.blind_ground_under
     else:
         far = layout.max_range if domain.max_range_m is None else domain.max_range_m
@@ -207,23 +221,35 @@ class _EnoughReturns:
     """Whether ``template`` at a placement is judged in the open: it holds ``min_returns``
     (with 20 % to spare) spanning :data:`~pytest_metamorphic.lidar.followups.insert.check.MIN_SPAN`
     or more (not the top of a child's head below a VLP-16's lowest laser). Cast once per
-    range, turn and ground height (to 5 cm), at the first bearing asked (the count
-    barely changes with the bearing; the ring pattern does with range and height)."""
+    template, layout, range, turn and ground height (to 5 cm), for every frame, at the
+    first bearing asked (the count barely changes with the bearing; the ring pattern does
+    with range and height)."""
 
     def __init__(self, template: ObjectTemplate, layout: BeamLayout, min_returns: int) -> None:
         self.template, self.layout, self.min_returns = template, layout, min_returns
-        self.judged: dict[tuple[float, float, int], bool] = {}
+        self.known = _IN_THE_OPEN.setdefault(template, {})
 
     def __call__(self, placement: Placement) -> bool:
         if self.min_returns == 0:
             return True
         key = (
+            id(self.layout),
+            self.min_returns,
             round(placement.range, 2),
             round(placement.turn, 3),
             round(placement.ground_z / 0.05),
         )
-        if key not in self.judged:
+        known = self.known.get(key)
+        if known is None or known[0] is not self.layout:  # an id may be reused
             points = returns_in_the_open(self.template, placement, layout=self.layout)
             span = float(np.ptp(points[:, 2])) if len(points) else 0.0
-            self.judged[key] = len(points) >= _RETURNS_SPARE * self.min_returns and span >= MIN_SPAN
-        return self.judged[key]
+            judged = len(points) >= _RETURNS_SPARE * self.min_returns and span >= MIN_SPAN
+            known = self.known[key] = (self.layout, judged)
+        return known[1]
+
+
+# Per template: (layout id, min_returns, range, turn, ground) -> (layout, judged in the open).
+# A frame's placements of the built-in road users are mostly those of the frame before.
+_IN_THE_OPEN: weakref.WeakKeyDictionary[
+    ObjectTemplate, dict[tuple[int, int, float, float, int], tuple[BeamLayout, bool]]
+] = weakref.WeakKeyDictionary()

@@ -103,6 +103,7 @@ def test_whole_scene_satisfies_every_relation_on_kitti_sweeps() -> None:
     _only_at_the_roi_edge(search)
 
 
+@pytest.mark.slow  # 46 s; the KITTI search above is the default suite's
 def test_whole_scene_satisfies_every_relation_on_rendered_streets() -> None:
     @SEARCH
     @metamorphic(source=mst.scene_frames(), relations=lidar_relations(), followups=2)
