@@ -19,6 +19,8 @@ from pytest_metamorphic.lidar.followups.insert import (
     object_templates,
     save_templates,
 )
+from pytest_metamorphic.lidar.followups.insert.catalogue import solid_road_users
+from pytest_metamorphic.lidar.followups.insert.reach import domain_placements
 from pytest_metamorphic.lidar.model.cloud import PointCloud
 from pytest_metamorphic.lidar.model.sensors import VLP16, frame_sensor
 from pytest_metamorphic.lidar.synthetic import render
@@ -42,6 +44,28 @@ def test_a_library_round_trips_every_template(tmp_path: Path) -> None:
         assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
         assert (a.label, a.size, a.view, a.range) == (b.label, b.size, b.view, b.range)
         assert a.spacing == pytest.approx(b.spacing)  # the patch each return stands for
+        assert not b.solid
+
+
+def test_a_whole_mesh_stays_whole_in_a_library_and_goes_to_the_near_field(
+    tmp_path: Path,
+) -> None:
+    solid = solid_road_users()
+    loaded = load_templates(save_templates(tmp_path / "meshes.npz", solid))
+    assert [t.solid for t in loaded] == [True] * len(solid)
+    assert [t.describe() for t in loaded] == [t.describe() for t in solid]
+    frame = street()
+    adult = next(t for t in loaded if t.source.endswith("[adult close by]"))
+    beams = frame_sensor(frame).sensor
+    assert domain_placements(frame, adult, reach="near field", layout=beams)
+    with np.load(tmp_path / "meshes.npz") as archive:
+        arrays = dict(archive)
+    index = json.loads(bytes(arrays["index"]).decode())
+    index["templates"][0]["solid"] = "yes"
+    arrays["index"] = np.frombuffer(json.dumps(index).encode(), dtype=np.uint8)
+    np.savez(tmp_path / "forged.npz", **arrays)
+    with pytest.raises(DataError, match="template 0: solid must be true or false"):
+        load_templates(tmp_path / "forged.npz")
 
 
 def test_a_library_of_an_earlier_version_loads_with_the_hdl64e_spacing(tmp_path: Path) -> None:

@@ -29,7 +29,9 @@ _MAX_TEMPLATES = 10_000
 
 
 def save_templates(path: str | os.PathLike[str], templates: Sequence[ObjectTemplate]) -> Path:
-    """Write ``templates`` to ``path`` (a ``.npz`` file, replaced atomically)."""
+    """Write ``templates`` to ``path`` (a ``.npz`` file, replaced atomically); a whole
+    mesh (``solid``, :meth:`~pytest_metamorphic.lidar.followups.insert.ObjectTemplate.from_mesh`)
+    stays one, and goes to the near field when loaded."""
     chosen = list(templates)
     if not chosen or not all(isinstance(t, ObjectTemplate) for t in chosen):
         raise InvalidArgument("templates must be a non-empty sequence of ObjectTemplate")
@@ -48,6 +50,7 @@ def save_templates(path: str | os.PathLike[str], templates: Sequence[ObjectTempl
                 "bearing": template.bearing,
                 "source": template.source,
                 "spacing": [float(v) for v in template.spacing],
+                "solid": template.solid,
             }
         )
     arrays["index"] = np.frombuffer(
@@ -127,6 +130,9 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
     if not all(math.isfinite(v) for v in numbers) or numbers[1] <= 0:
         raise DataError(f"{where}: view, range and bearing must be finite, range > 0", path=source)
     spacing = _spacing(entry.get("spacing"), where, source)
+    solid = entry.get("solid", False)  # libraries written before it hold recorded faces
+    if not isinstance(solid, bool):
+        raise DataError(f"{where}: solid must be true or false, got {solid!r}", path=source)
     template = ObjectTemplate(
         label=label,
         size=size,
@@ -137,6 +143,7 @@ def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path
         range=numbers[1],
         bearing=numbers[2],
         source=str(entry.get("source", "")),
+        solid=solid,
     )
     return dataclasses.replace(template, spacing=spacing["spacing"]) if spacing else template
 
