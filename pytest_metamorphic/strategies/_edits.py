@@ -179,10 +179,8 @@ def inserted_objects(
             drawn = st.tuples(st.sampled_from(places), st.sampled_from(factors)).map(
                 lambda drawn: insert(band, template, *drawn)
             )
-            if band != "far field":
-                return drawn
-            # Far shares are kept where the object in the open holds 1.2 x min_returns;
-            # the frame may still block a few of its beams at one bearing.
+            # Places are kept where the object in the open holds 1.2 x min_returns; the
+            # frame may still block a few of its beams at one bearing, or a scale shrink it.
             return drawn.filter(lambda f: f.params["inserted_returns"] >= min_returns)
 
         def pick(option: tuple[Reach, list[Any]]) -> st.SearchStrategy[Followup]:
