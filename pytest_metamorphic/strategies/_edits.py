@@ -299,19 +299,15 @@ def relocated_objects(
     chosen = as_scope(scope)
     if not isinstance(domain, OperatingDomain):
         raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
-    far = domain.max_range_m
-    if not isinstance(domain, OperatingDomain):
-        raise InvalidArgument(f"domain={domain!r} must be an OperatingDomain")
-    far = domain.max_range_m
 
     def moves() -> st.SearchStrategy[Followup]:
         beams = layout if layout is not None else frame_sensor(frame).sensor
         if not isinstance(beams, BeamLayout):
             return st.just(Followup.not_applicable(frame, _no_beams(frame)))
-        key = ("relocate", chosen_kinds, margin, min_returns, chosen, id(beams), far)
+        key = ("relocate", chosen_kinds, margin, min_returns, chosen, id(beams), domain)
         cache = _MOVABLE.setdefault(frame, {})
         if key not in cache:
-            cache[key] = _movables(frame, chosen_kinds, margin, min_returns, beams, chosen, far)
+            cache[key] = _movables(frame, chosen_kinds, margin, min_returns, beams, chosen, domain)
         movables = cache[key]
         if not movables:
             return st.just(Followup.not_applicable(frame, _nothing_moves(frame, chosen)))
@@ -347,7 +343,7 @@ def _movables(
     min_returns: int,
     beams: BeamLayout,
     scope: ObstacleScope,
-    far: float | None,
+    domain: OperatingDomain,
 ) -> list[tuple[Movable, dict[MoveKind, list[Move]]]]:
     found = []
     for box in removal_candidates(frame, scope=scope):
@@ -355,7 +351,7 @@ def _movables(
         moves = (
             {}
             if item is None
-            else item.moves(layout=beams, scope=scope, kinds=kinds, max_range=far)
+            else item.moves(layout=beams, scope=scope, kinds=kinds, domain=domain)
         )
         if item is not None and moves:
             found.append((item, moves))

@@ -131,6 +131,11 @@ class OperatingDomain:
             )
         object.__setattr__(self, "ego_size_m", (float(ego[0]), float(ego[1])))
 
+    def far_limit(self, sensor_range: float) -> float:
+        """The farthest distance (m) objects are placed at with a sensor of
+        ``sensor_range``: ``max_range_m`` where nearer, else the sensor's own."""
+        return sensor_range if self.max_range_m is None else min(self.max_range_m, sensor_range)
+
     def describe(self) -> str:
         """One line, e.g. for a report: the ranges this domain varies."""
         far = "the sensor's range" if self.max_range_m is None else f"{self.max_range_m:g} m"

@@ -60,7 +60,7 @@ _NEAR_BEARINGS = 24  # every 15 degrees
 _FAR_STEP = 5.0  # degrees between far-field bearings
 _FAR_SHARES = (0.35, 0.45, 0.55, 0.65, 0.75, 0.9)  # of the far limit
 _SCOPE_MARGIN = 0.2  # metres a placed footprint keeps inside the scope
-_RETURNS_SPARE = 1.2  # far shares must leave this times min_returns in the open
+_RETURNS_SPARE = 1.2  # a place must leave this times min_returns on the object in the open
 
 
 def ego_box(domain: OperatingDomain = DEFAULT_DOMAIN) -> Box:
@@ -187,8 +187,7 @@ def domain_placements(
         candidates = _near_candidates(template, domain)
         stand = ground.blind_ground_under
     else:
-        far = layout.max_range if domain.max_range_m is None else domain.max_range_m
-        far = min(far, layout.max_range)
+        far = domain.far_limit(layout.max_range)
         steps = int(180 / _FAR_STEP)
         candidates = [
             Placement(

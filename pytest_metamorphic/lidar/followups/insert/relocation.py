@@ -41,6 +41,7 @@ from pytest_metamorphic.lidar.followups.insert.insertion import InsertObject
 from pytest_metamorphic.lidar.followups.insert.placement import _TargetGround
 from pytest_metamorphic.lidar.followups.insert.template import ObjectTemplate, Placement
 from pytest_metamorphic.lidar.judging.scope import ObstacleScope
+from pytest_metamorphic.lidar.model.domain import DEFAULT_DOMAIN, OperatingDomain
 from pytest_metamorphic.lidar.model.frame import Frame
 from pytest_metamorphic.lidar.model.hdl64 import BeamLayout
 from pytest_metamorphic.lidar.model.obstacles import Box
@@ -294,13 +295,14 @@ class Movable:
         scope: ObstacleScope,
         kinds: Sequence[MoveKind] = MOVE_KINDS,
         limit: int = 24,
-        max_range: float | None = None,
+        domain: OperatingDomain = DEFAULT_DOMAIN,
     ) -> dict[MoveKind, list[Move]]:
         """For each of ``kinds``, up to ``limit`` moves that leave the object on free
         ground (no return above the local ground in its footprint grown by 0.5 m), in
-        clear view, judged by ``scope`` and within 90 % of the far limit (the sensor's
-        range, or ``max_range`` where nearer: the operating domain's), smallest first."""
-        far = layout.max_range if max_range is None else min(max_range, layout.max_range)
+        clear view, judged by ``scope`` and within 90 % of ``domain``'s far limit
+        (:meth:`~pytest_metamorphic.lidar.model.domain.OperatingDomain.far_limit`),
+        smallest first."""
+        far = domain.far_limit(layout.max_range)
         found: dict[MoveKind, list[Move]] = {}
         for kind in kinds:
             moves = [move for move in _candidates(kind) if self._free(move, layout, scope, far)]
