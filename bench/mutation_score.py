@@ -38,6 +38,7 @@ relations are not run for it (README, "Testing a learned detector", says why).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import sys
 import time
@@ -210,6 +211,65 @@ def _expected(label: str, relation: MetamorphicRelation, any_angle: bool) -> boo
     return True
 
 
+def _suites(scope: str) -> tuple[list[tuple[MetamorphicRelation, Any]], list[Any]]:
+    """The relations with their sources: every system's, and the learned detector's."""
+    synthetic = st.sampled_from(rendered_scenes())
+    # With their labels: insertion takes its templates from ground truth only.
+    real = frames(str(KITTI), roi=kitti_label_region(), cache_size=6)
+    both = st.one_of(real, synthetic)
+    suite = [(relation, both) for relation in lidar_relations(scope=scope)]
+    # The road's shape is varied on rendered scenes only (road_terrain's docstring).
+    suite.append((road_terrain(scope=scope), synthetic))
+    suite.append((rotation_equivariance(angles="any", scope=scope), synthetic))
+    # The learned detector is judged with the tolerance its jitter needs (same order).
+    learned_suite = [
+        (relation, synthetic) for relation in lidar_relations(scope=scope, tolerance="learned")
+    ]
+    learned_suite += suite[-2:]
+    return suite, learned_suite
+
+
+CORRECT = ("reference", "whole_scene", "cnnseg_roi")
+
+
+def _system(label: str) -> Callable[[Any], Any]:
+    if label == "reference":
+        return ReferencePerception()
+    if label == "whole_scene":
+        return WholeScenePerception()
+    if label == "cnnseg_roi":
+        from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation
+
+        return CNNSegmentation(full_cloud=False)
+    return mutant(label)
+
+
+# One worker process's suites, built once per process (each renders its own scenes: no
+# ray-casting state crosses a fork).
+_WORKER: dict[str, Any] = {}
+
+
+def _run_system(job: tuple[str, argparse.Namespace]) -> tuple[str, list[tuple[str, str]], float]:
+    """Every relation of the matrix on one system: (label, cells, seconds)."""
+    label, args = job
+    warnings.filterwarnings("ignore", category=HypothesisWarning)
+    if "suites" not in _WORKER:
+        _WORKER["suites"] = _suites(args.scope)
+    suite, learned_suite = _WORKER["suites"]
+    began = time.perf_counter()
+    system = _system(label)
+    cells = [
+        ("n/a", "")
+        if not _expected(label, relation, index == len(suite) - 1)
+        or (args.only and not relation.name.startswith(args.only))
+        else run_relation(system, relation, source, args.max_examples)
+        for index, (relation, source) in enumerate(
+            learned_suite if label == "cnnseg_roi" else suite
+        )
+    ]
+    return label, cells, time.perf_counter() - began
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-examples", type=int, default=100)
@@ -226,60 +286,57 @@ def main() -> None:
         help="run only relations whose names start with these (comma-separated; the others "
         "are n/a): a column re-run after one relation changed",
     )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="worker processes, one system each at a time (the whole matrix in one run)",
+    )
     args = parser.parse_args()
+    if args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, not {args.jobs}")
     args.correct_only = [name for name in args.correct_only.split(",") if name]
-    only = tuple(prefix for prefix in args.relations.split(",") if prefix)
+    args.only = tuple(prefix for prefix in args.relations.split(",") if prefix)
     names = [name for name in args.mutants.split(",") if name]
+    unknown = sorted(set(names) - set(MUTANTS))
+    if unknown:
+        parser.error(f"--mutants: no mutant named {', '.join(unknown)}")
     # Falsifying examples hold whole frames; their reprs are long, and we print them cut.
     warnings.filterwarnings("ignore", category=HypothesisWarning)
 
     if not KITTI.is_dir():
         sys.exit(f"KITTI frames not found at {KITTI} (set PYTEST_METAMORPHIC_DATA)")
-    synthetic = st.sampled_from(rendered_scenes())
-    # With their labels: insertion takes its templates from ground truth only.
-    real = frames(str(KITTI), roi=kitti_label_region(), cache_size=6)
-    both = st.one_of(real, synthetic)
-    suite = [(relation, both) for relation in lidar_relations(scope=args.scope)]
-    # The road's shape is varied on rendered scenes only (road_terrain's docstring).
-    suite.append((road_terrain(scope=args.scope), synthetic))
-    suite.append((rotation_equivariance(angles="any", scope=args.scope), synthetic))
-    # The learned detector is judged with the tolerance its jitter needs (same order).
-    learned_suite = [
-        (relation, synthetic) for relation in lidar_relations(scope=args.scope, tolerance="learned")
-    ]
-    learned_suite += suite[-2:]
+    suite, _ = _suites(args.scope)
     short = [f"R{i + 1}" for i in range(len(suite))]
-
-    correct: dict[str, Any] = {
-        "reference": ReferencePerception(),
-        "whole_scene": WholeScenePerception(),
+    correct = [label for label in CORRECT if not args.correct_only or label in args.correct_only]
+    if "cnnseg_roi" in correct:
+        try:
+            _system("cnnseg_roi")
+        except Exception as error:  # onnxruntime missing: say so, run the rest
+            print(f"learned detector skipped: {error}")
+            correct.remove("cnnseg_roi")
+    skipped = [label for label in CORRECT if label not in correct]
+    labels = [*correct, *names]
+    results: dict[str, list[tuple[str, str]]] = {
+        label: [("n/a", "")] * len(suite) for label in skipped if label != "cnnseg_roi"
     }
-    try:
-        from pytest_metamorphic.lidar.systems.perception.cnnseg import CNNSegmentation
-
-        correct["cnnseg_roi"] = CNNSegmentation(full_cloud=False)
-    except Exception as error:  # onnxruntime missing: say so, run the rest
-        print(f"learned detector skipped: {error}")
-    systems = {**correct, **{name: mutant(name) for name in names}}
-    results: dict[str, list[tuple[str, str]]] = {}
     started = time.perf_counter()
-    for label, system in systems.items():
-        began = time.perf_counter()
-        skipped = label in correct and args.correct_only and label not in args.correct_only
-        results[label] = [
-            ("n/a", "")
-            if skipped
-            or not _expected(label, relation, index == len(suite) - 1)
-            or (only and not relation.name.startswith(only))
-            else run_relation(system, relation, source, args.max_examples)
-            for index, (relation, source) in enumerate(
-                learned_suite if label == "cnnseg_roi" else suite
-            )
-        ]
-        marks = " ".join(
-            f"{code}:{status}" for code, (status, _) in zip(short, results[label], strict=True)
-        )
-        print(f"[{time.perf_counter() - began:6.1f}s] {label}: {marks}", flush=True)
+    jobs = [(label, args) for label in labels]
+    if args.jobs == 1:
+        done = map(_run_system, jobs)
+    else:
+        # spawn: the learned detector's runtime and the ray caster hold threads a fork
+        # would copy mid-flight.
+        pool = multiprocessing.get_context("spawn").Pool(args.jobs)
+        done = pool.imap_unordered(_run_system, jobs)
+    for label, cells, seconds in done:
+        results[label] = cells
+        marks = " ".join(f"{code}:{status}" for code, (status, _) in zip(short, cells, strict=True))
+        print(f"[{seconds:6.1f}s] {label}: {marks}", flush=True)
+    if args.jobs > 1:
+        pool.close()
+    systems = [label for label in [*CORRECT, *names] if label in results]
+    correct = [label for label in CORRECT if label in results]
 
     unsound = {
         i for i, (status, _) in enumerate(results["reference"]) if status in ("killed", "error")
