@@ -43,9 +43,9 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
@@ -211,7 +211,9 @@ def _expected(label: str, relation: MetamorphicRelation, any_angle: bool) -> boo
     return True
 
 
-def _suites(scope: str) -> tuple[list[tuple[MetamorphicRelation, Any]], list[Any]]:
+def _suites(
+    scope: Literal["roi", "all"],
+) -> tuple[list[tuple[MetamorphicRelation, Any]], list[Any]]:
     """The relations with their sources: every system's, and the learned detector's."""
     synthetic = st.sampled_from(rendered_scenes())
     # With their labels: insertion takes its templates from ground truth only.
@@ -322,6 +324,7 @@ def main() -> None:
     }
     started = time.perf_counter()
     jobs = [(label, args) for label in labels]
+    done: Iterable[tuple[str, list[tuple[str, str]], float]]
     if args.jobs == 1:
         done = map(_run_system, jobs)
     else:
@@ -349,7 +352,7 @@ def main() -> None:
     killed_count = 0
     for label in systems:
         row = results[label]
-        cells = [{"ok": ".", "killed": "K", "error": "E", "n/a": "-"}[status] for status, _ in row]
+        signs = [{"ok": ".", "killed": "K", "error": "E", "n/a": "-"}[status] for status, _ in row]
         kills = [i for i, (status, _) in enumerate(row) if status == "killed" and i not in unsound]
         if label not in correct and kills:
             killed_count += 1
@@ -361,7 +364,7 @@ def main() -> None:
             verdict = f"{count} false alarm(s)"
         else:
             verdict = "yes" if kills else "NO"
-        print(f"{label:<26}" + "".join(f"{c:>4}" for c in cells) + f"  {verdict}")
+        print(f"{label:<26}" + "".join(f"{c:>4}" for c in signs) + f"  {verdict}")
     if unsound:
         print(f"\nthe reference violates {sorted(short[i] for i in unsound)}: not counted")
     alarms = {

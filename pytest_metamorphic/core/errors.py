@@ -25,6 +25,7 @@ __all__ = [
     "ProtocolWarning",
     "SystemTimeout",
     "SystemUnderTestCrash",
+    "WriteError",
 ]
 
 
@@ -126,7 +127,25 @@ class FolderInUse(MetamorphicError):
         super().__init__(f"{self.path}: {message}" if self.path else message)
 
 
-class CampaignLogError(MetamorphicError, OSError):
+class WriteError(MetamorphicError, OSError):
+    """A file or folder could not be written where the user asked (a read-only mount, a
+    full disk, a name too long for the file system).
+
+    The message names the user's path (never a hidden temporary sibling), the cause and
+    what to do about it; ``errno`` and ``strerror`` are the operating system's.
+    """
+
+    def __init__(self, message: str, *, path: object = None, cause: OSError | None = None) -> None:
+        self.path = None if path is None else str(path)
+        super().__init__(f"{self.path}: {message}" if self.path else message)
+        if cause is not None:
+            self.errno, self.strerror = cause.errno, cause.strerror
+
+    def __str__(self) -> str:  # OSError's would be "[Errno 30] Read-only file system"
+        return str(self.args[0]) if self.args else ""
+
+
+class CampaignLogError(WriteError):
     """A campaign log could not be written (a full disk, a folder gone): the records
     written before are intact and a resumed run continues from them."""
 

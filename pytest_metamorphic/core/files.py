@@ -14,19 +14,27 @@ outside data goes through these helpers:
 * :func:`inside`: a path from a record resolved inside its folder (no absolute paths, no
   ``..``, no symlink out);
 * :func:`field`: a typed field of a parsed record, or a DataError naming it.
+
+Writing under a folder a user named goes through :func:`staging_sibling` (a hidden
+temporary name that fits the file system's name limit, however long the user's name) and
+:func:`write_error` (the operating system's failure as a
+:class:`~pytest_metamorphic.core.errors.WriteError` naming the user's path, with advice
+that fits the cause: a read-only mount is not a full disk).
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 import stat
-import tempfile
+import uuid
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import IO, Any
 
-from pytest_metamorphic.core.errors import DataError
+from pytest_metamorphic.core.errors import DataError, WriteError
 
 __all__ = [
     "MAX_JSON_BYTES",
@@ -37,7 +45,10 @@ __all__ = [
     "open_regular_fd",
     "read_json",
     "read_regular",
+    "staging_sibling",
+    "write_advice",
     "write_atomically",
+    "write_error",
 ]
 
 MAX_JSON_BYTES = 64 * 1024 * 1024
@@ -284,16 +295,89 @@ def _json_type(value: object) -> str:
     return type(value).__name__
 
 
-def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
+def write_atomically(path: Path, write: Callable[[Path], object], *, what: str = "file") -> None:
     """Create or replace ``path`` with what ``write(tmp)`` writes to a temporary sibling,
-    renamed into place: an interruption never leaves half a file."""
+    renamed into place: an interruption never leaves half a file.
+
+    Raises
+    ------
+    WriteError
+        The folder or the file cannot be written (named: ``path``, not the sibling).
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    tmp = staging_sibling(path)
     try:
-        write(Path(tmp))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write(tmp)
         os.replace(tmp, path)
+    except OSError as error:
+        _discard(tmp)
+        if isinstance(error, WriteError):
+            raise
+        raise write_error(error, path, what=what) from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        _discard(tmp)
         raise
+
+
+def _discard(tmp: Path) -> None:
+    # On a read-only mount even unlinking a file that is not there fails (EROFS).
+    with contextlib.suppress(OSError):
+        tmp.unlink(missing_ok=True)
+
+
+NAME_MAX = 255
+"""The longest file name (in bytes) assumed where the file system does not say."""
+
+
+def _name_max(folder: Path) -> int:
+    for candidate in (folder, *folder.parents):
+        try:
+            return int(os.pathconf(candidate, "PC_NAME_MAX"))
+        except (OSError, ValueError, AttributeError):  # not there yet, or no pathconf
+            continue
+    return NAME_MAX
+
+
+def staging_sibling(target: str | os.PathLike[str], kind: str = "tmp") -> Path:
+    """A fresh hidden name beside ``target`` to write before renaming into place:
+    ``.<name>.<8 hex>.<kind>``, the name cut so that the whole fits the file system's
+    limit (a legal 250-byte name would otherwise make a 264-byte temporary one)."""
+    target = Path(target)
+    tag = f".{uuid.uuid4().hex[:8]}.{kind}"
+    room = _name_max(target.parent) - 1 - len(tag)
+    name = os.fsencode(target.name)
+    if len(name) > room:
+        name = name[: max(room, 1)]
+    return target.parent / f".{os.fsdecode(name)}{tag}"
+
+
+_ADVICE = {
+    errno.EROFS: "it is on a read-only file system: choose a folder on a writable one",
+    errno.EACCES: "you may not write there: choose a folder you may write to",
+    errno.EPERM: "you may not write there: choose a folder you may write to",
+    errno.ENOSPC: "the disk is full: free some space",
+    errno.EDQUOT: "the disk quota is used up: free some space",
+    errno.EFBIG: "the file reached the largest size allowed (the file system's, or ulimit -f)",
+    errno.ENAMETOOLONG: "a name is too long for the file system: choose a shorter one",
+    errno.ENOTDIR: "a file stands where a folder must be: move it or choose another path",
+    errno.EISDIR: "a folder stands where the file must be: move it or choose another path",
+    # mkdir(exist_ok=True) on a file says EEXIST
+    errno.EEXIST: "a file stands where a folder must be: move it or choose another path",
+    errno.EMFILE: "the process has too many files open",
+    errno.ENFILE: "the system has too many files open",
+}
+
+
+def write_advice(error: OSError) -> str:
+    """What to do about ``error``, an operating-system failure to write."""
+    return _ADVICE.get(error.errno or 0, "check that the folder exists and can be written")
+
+
+def write_error(error: OSError, path: str | os.PathLike[str], *, what: str) -> WriteError:
+    """``error`` as a :class:`~pytest_metamorphic.core.errors.WriteError` naming ``path``
+    (the user's, whatever file the operating system named) and what to do."""
+    reason = error.strerror or type(error).__name__
+    return WriteError(
+        f"could not write {what} ({reason}): {write_advice(error)}", path=path, cause=error
+    )

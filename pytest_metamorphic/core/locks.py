@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from pytest_metamorphic.core.errors import FolderInUse
+from pytest_metamorphic.core.files import write_error
 
 try:
     import fcntl
@@ -50,13 +51,18 @@ def exclusive(lock: str | os.PathLike[str], *, what: str) -> Iterator[None]:
     ------
     FolderInUse
         Another process holds the lock; the message names it.
+    WriteError
+        The lock file's folder cannot be written (a read-only mount, no permission).
     """
     path = Path(lock)
     if fcntl is None:  # pragma: no cover - Windows
         yield
         return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:  # a read-only mount, a file where the folder should be
+        raise write_error(error, path.parent, what=what) from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

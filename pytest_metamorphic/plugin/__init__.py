@@ -12,13 +12,14 @@ from __future__ import annotations
 import inspect
 import json
 import warnings
-from collections.abc import Generator
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from pytest_metamorphic.core.errors import NothingTestedWarning
+from pytest_metamorphic.core.errors import NothingTestedWarning, WriteError
+from pytest_metamorphic.core.files import write_error
 from pytest_metamorphic.core.stats import Recorder, nothing_tested, reasons_of, recording
 from pytest_metamorphic.core.tracebacks import explain_the_users_code, start_at_the_users_test
 from pytest_metamorphic.plugin.campaigns import (
@@ -51,7 +52,8 @@ _REPLAYS: pytest.StashKey[list[Artifact]] = pytest.StashKey()  # config: --mt-re
 _ITEM_REPLAYS: pytest.StashKey[list[ReplayResult]] = pytest.StashKey()  # item: its replays
 _REPLAY_RESULTS: pytest.StashKey[list[dict[str, Any]]] = pytest.StashKey()  # config: all, as JSON
 _ARTIFACT_LIST: pytest.StashKey[list[tuple[str, str]]] = pytest.StashKey()  # (nodeid, folder)
-_REPORT_ERROR: pytest.StashKey[str] = pytest.StashKey()  # why the reports were not written
+# What could not be written at the session's end, and why (the option, the error).
+_REPORT_ERROR: pytest.StashKey[list[str]] = pytest.StashKey()
 ARTIFACT_PROPERTY = "metamorphic_artifact"
 REPLAY_PROPERTY = "metamorphic_replay"
 
@@ -304,13 +306,16 @@ class _SessionReporter:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if hasattr(self.config, "workerinput"):
             return
-        error = self.config.stash.get(_REPORT_ERROR, None)
-        if error is not None:
+        errors = self.config.stash.get(_REPORT_ERROR, [])
+        if errors:
             terminalreporter.write_sep("=", "metamorphic reports NOT written", red=True)
-            terminalreporter.write_line(
-                f"{error}. The campaign logs hold every finished source: free the space "
-                "and run again with --mt-campaign --mt-resume to write the reports."
-            )
+            for line in errors:
+                terminalreporter.write_line(line)
+            if any(result.sources_done for result in self.config.stash[CAMPAIGNS].values()):
+                terminalreporter.write_line(
+                    "The campaign logs hold every finished source: once the folder can be "
+                    "written, run again with --mt-campaign --mt-resume to write the reports."
+                )
         summary = self.config.stash[_SUMMARY]
         if summary.tests:
             terminalreporter.write_sep("=", "metamorphic relations")
@@ -373,20 +378,27 @@ class _SessionReporter:
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
         if hasattr(self.config, "workerinput"):
             return
-        try:
-            self._write_reports()
-        except OSError as error:
-            # A full disk at the report step: say so in the summary and fail the session
-            # (the campaign logs are complete; a --mt-resume run rewrites the reports).
-            self.config.stash[_REPORT_ERROR] = f"{type(error).__name__}: {error}"
+        errors = [error for error in self._write_reports() if error]
+        if errors:
+            # A read-only folder or a full disk at the report step: each report that could
+            # not be written is named in the summary and the session fails (campaign logs
+            # are complete; a --mt-resume run rewrites the campaign reports).
+            self.config.stash[_REPORT_ERROR] = errors
             session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
-    def _write_reports(self) -> None:
+    def _write_reports(self) -> Iterator[str | None]:
+        """Write every report asked for, each apart: one that fails (said as a line) does
+        not cost the others."""
         options = self.config.stash[OPTIONS]
         if options.report is not None:
             summary = self.config.stash[_SUMMARY]
-            summary.write_json(options.report)
-            _write_coverage_picture(summary.rows(), options.report.with_suffix(".coverage.png"))
+            yield _written("--mt-report", options.report, "the JSON report", summary.write_json)
+            yield _written(
+                "--mt-report",
+                options.report.with_suffix(".coverage.png"),
+                "the coverage picture",
+                lambda path: _write_coverage_picture(summary.rows(), path),
+            )
         gates = self.config.stash[GATES]
         judged = [
             (result, gates[name].verdict if name in gates else None)
@@ -395,11 +407,32 @@ class _SessionReporter:
         for result, verdict in judged:
             name = result.header["campaign"]
             cases = gates[name].cases if name in gates else []
-            write_campaign_reports(result, options.campaign_dir / slug(name), verdict, cases)
+            yield _written(
+                "--mt-campaign-dir",
+                options.campaign_dir / slug(name),
+                f"the reports of campaign {name!r}",
+                lambda folder: write_campaign_reports(result, folder, verdict, cases),  # noqa: B023
+            )
         if judged and options.job_summary is not None:
             from pytest_metamorphic.reports.campaign import write_job_summary
 
-            write_job_summary(options.job_summary, judged, options.campaign_dir)
+            yield _written(
+                "--mt-job-summary (or $GITHUB_STEP_SUMMARY)",
+                options.job_summary,
+                "the job summary",
+                lambda path: write_job_summary(path, judged, options.campaign_dir),
+            )
+
+
+def _written(option: str, path: Path, what: str, write: Callable[[Path], object]) -> str | None:
+    """None once ``write(path)`` has written ``what``; else the line saying why not."""
+    try:
+        write(path)
+    except OSError as error:
+        if not isinstance(error, WriteError):
+            error = write_error(error, path, what=what)
+        return f"{option}: {error}"
+    return None
 
 
 def _write_coverage_picture(rows: list[dict[str, Any]], path: Path) -> None:

@@ -99,10 +99,13 @@ def _shard(item: pytest.Item) -> int:
     return int(callspec.params.get("mt_shard", 0)) if callspec is not None else 0
 
 
+_FOLDER_OPTION = " (--mt-campaign-dir names the folder campaigns write to)"
+
+
 def run_campaign_shard(item: pytest.Item) -> None:
     __tracebackhide__ = True
     from pytest_metamorphic.core.campaign import ShardLogs, run_campaign
-    from pytest_metamorphic.core.errors import CampaignLogError, DataError
+    from pytest_metamorphic.core.errors import CampaignLogError, DataError, WriteError
 
     spec = campaign_of(item)
     campaign, shards = spec.campaign, spec.shard_count(_workers(item.config))
@@ -115,6 +118,7 @@ def run_campaign_shard(item: pytest.Item) -> None:
     if options.dask:
         run = {"cluster": _dask_client(item.config), "batch_size": options.dask_batch}
     bar = _progress_bar(item, campaign.name, where=options.dask or f"{shard + 1}/{shards}")
+    failure = None
     try:
         result = run_campaign(
             campaign,
@@ -126,13 +130,15 @@ def run_campaign_shard(item: pytest.Item) -> None:
             unverified="rerun" if options.rerun_unverified else "error",
             **run,
         )
-    except (CampaignLogError, DataError) as error:
-        # A log that cannot be written (a full disk) or read back (a record that does not
-        # verify): the message says what to do; the plugin's frames would only hide it.
+    except (WriteError, DataError) as error:
+        # A log that cannot be written (a full disk, a read-only mount) or read back (a
+        # record that does not verify): the message says what to do; the plugin's frames
+        # would only hide it.
         if not hasattr(item.config, "workerinput"):
             with contextlib.suppress(Exception):
                 merge_campaign(item.config, _read_back(campaign, logs, run))
-        pytest.fail(f"campaign {campaign.name!r}: {error}", pytrace=False)
+        where = "" if isinstance(error, CampaignLogError | DataError) else _FOLDER_OPTION
+        failure = f"campaign {campaign.name!r}: {error}{where}"
     except BaseException:
         # Interrupted (Ctrl-C, a crash in the plugin): pytest makes no report for this
         # test, so the sources this shard finished would be missing from the partial
@@ -143,6 +149,8 @@ def run_campaign_shard(item: pytest.Item) -> None:
     finally:
         if bar:
             bar.close()
+    if failure is not None:  # out of the handler: no chained OSError shown above it
+        pytest.fail(failure, pytrace=False)
     worker = getattr(item.config, "workerinput", {}).get("workerid", "main")
     result.execution[-1]["pytest_worker"] = worker
     item.stash[CAMPAIGN_RESULT] = result

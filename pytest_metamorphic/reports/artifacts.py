@@ -27,7 +27,6 @@ import math
 import os
 import re
 import shutil
-import uuid
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -36,7 +35,7 @@ from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.core.files import field, read_json
+from pytest_metamorphic.core.files import field, read_json, staging_sibling
 from pytest_metamorphic.core.perturbation import as_reducible
 from pytest_metamorphic.reports.inputs import (
     RECORD,
@@ -242,7 +241,7 @@ def write_folder_atomically(folder: str | os.PathLike[str], fill: Callable[[Path
     sibling, renamed into place: the folder is either complete or absent."""
     target = Path(folder)
     target.parent.mkdir(parents=True, exist_ok=True)
-    staging = target.parent / f".{target.name}.{uuid.uuid4().hex[:8]}.tmp"
+    staging = staging_sibling(target)
     staging.mkdir()
     try:
         fill(staging)
@@ -255,7 +254,7 @@ def write_folder_atomically(folder: str | os.PathLike[str], fill: Callable[[Path
 def _swap_in(staging: Path, target: Path) -> None:
     """Move ``staging`` to ``target``; an existing ``target`` is replaced."""
     if target.exists():
-        old = target.parent / f".{target.name}.{uuid.uuid4().hex[:8]}.old"
+        old = staging_sibling(target, "old")
         os.replace(target, old)
         os.replace(staging, target)
         shutil.rmtree(old, ignore_errors=True)

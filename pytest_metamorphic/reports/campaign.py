@@ -194,13 +194,17 @@ def _violation_lines(result: CampaignResult, limit: int | None) -> list[str]:
     return [head, *(f"  {_group_line(group, size_label(result))}" for group in shown)]
 
 
-def describe_execution(entries: list[dict[str, Any]]) -> str:
+def describe_execution(entries: list[dict[str, Any]], *, read_back: int | None = None) -> str:
     """How the sources ran, in words: on a Dask cluster, in pytest-xdist shards, in one process.
 
     For example ``ran on a Dask cluster tcp://... (2 workers, 63 tasks, ...)``,
     ``ran in 8 shards on pytest-xdist workers gw0, gw1`` or ``ran in one process``.
+    ``read_back``: how many sources the result holds (when nothing ran, they came from the
+    logs; none at all is said as such).
     """
     if not entries:
+        if read_back == 0:
+            return "ran: nothing (no source ran or was read back from the logs)"
         return "ran: nothing this session (every source read back from the logs)"
     parts = []
     for entry in (e for e in entries if e.get("engine") == "dask"):
@@ -258,7 +262,7 @@ def format_table(result: CampaignResult) -> list[str]:
         lines.append(f"{result.source_crashes} source(s) crashed the system and were skipped")
     lines.extend(_not_applicable_lines(result))
     lines.extend(_dropped_lines(result, _SHOWN_EXAMPLES))
-    lines.append(describe_execution(result.execution))
+    lines.append(describe_execution(result.execution, read_back=len(result.sources_done)))
     lines.extend(_violation_lines(result, _SHOWN_EXAMPLES))
     return lines
 
@@ -343,7 +347,7 @@ def to_markdown(
     dropped = _dropped_lines(result, None)
     if dropped:
         parts += ["", dropped[0], "", *(f"- {line.strip()}" for line in dropped[1:])]
-    parts += ["", describe_execution(result.execution)]
+    parts += ["", describe_execution(result.execution, read_back=len(result.sources_done))]
     violations = _violation_lines(result, None)
     if violations:
         parts += ["", "## Violations by obstacle", "", violations[0], ""]
@@ -398,7 +402,9 @@ def write_json(
         data["gate"] = verdict.to_json()
     if cases:
         data["cases"] = [case.to_json() for case in cases]
-    write_atomically(path, lambda p: p.write_text(json.dumps(data, indent=2)))
+    write_atomically(
+        path, lambda p: p.write_text(json.dumps(data, indent=2)), what="the campaign report"
+    )
 
 
 def write_markdown(
@@ -406,4 +412,6 @@ def write_markdown(
 ) -> None:
     chart = (Path(path).parent / CHART_NAME).exists()
     text = to_markdown(result, verdict, chart=chart, cases=cases)
-    write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))
+    write_atomically(
+        path, lambda p: p.write_text(text, encoding="utf-8"), what="the campaign report"
+    )

@@ -248,5 +248,7 @@ def write_chart(result: CampaignResult, path: Path) -> None:
         title += " (PARTIAL)"
     figure.suptitle(title, fontsize=11)
     figure.tight_layout()
-    write_atomically(path, lambda p: figure.savefig(p, dpi=110, format="png"))
+    write_atomically(
+        path, lambda p: figure.savefig(p, dpi=110, format="png"), what="the campaign chart"
+    )
     plt.close(figure)

@@ -85,6 +85,8 @@ def write_coverage_chart(rows: Iterable[Mapping[str, Any]], path: Path) -> bool:
         start += span
     axes.set_title("operating domain reached (red: varied, never reached)", fontsize=9, pad=18)
     figure.tight_layout()
-    write_atomically(path, lambda p: figure.savefig(p, dpi=110, format="png"))
+    write_atomically(
+        path, lambda p: figure.savefig(p, dpi=110, format="png"), what="the coverage picture"
+    )
     plt.close(figure)
     return True

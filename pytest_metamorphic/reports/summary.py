@@ -8,12 +8,11 @@ merges them on whichever process prints the summary.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pytest_metamorphic.core.files import write_atomically
 from pytest_metamorphic.core.stats import Recorder, RelationStats, nothing_tested, reasons_of
 from pytest_metamorphic.lidar.judging.coverage import BANDS
 
@@ -255,12 +254,9 @@ class SessionSummary:
 
     def write_json(self, path: Path) -> None:
         """Write atomically: a crash mid-write never leaves a truncated report."""
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as handle:
-                json.dump(self.to_json(), handle, indent=2)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        data = self.to_json()
+        write_atomically(
+            path,
+            lambda tmp: tmp.write_text(json.dumps(data, indent=2), encoding="utf-8"),
+            what="the JSON report",
+        )

@@ -15,7 +15,6 @@ repository root (as CI does) or from ``tests/``. The error names both folders.
 
 from __future__ import annotations
 
-import glob
 import os
 import sys
 from pathlib import Path
@@ -24,6 +23,7 @@ from typing import Any, Literal
 from hypothesis import strategies as st
 
 from pytest_metamorphic.core.errors import InvalidArgument
+from pytest_metamorphic.core.globbing import expand
 from pytest_metamorphic.lidar.io._common import ZerosPolicy
 from pytest_metamorphic.lidar.io.catalog import FrameCatalog
 from pytest_metamorphic.lidar.model.cloud import NonFinitePolicy
@@ -127,7 +127,7 @@ def _beside_caller(path_or_glob: Any, caller: Path | None) -> Any:
     if caller is None or os.path.isabs(text):
         return path_or_glob
     beside = caller.parent / text
-    if beside.exists() or glob.glob(str(beside), recursive=True):
+    if beside.exists() or expand(str(beside)):
         return str(beside)
     return path_or_glob
 

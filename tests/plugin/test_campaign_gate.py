@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 
 import pytest
 
@@ -283,10 +284,82 @@ def test_a_full_disk_fails_clearly_and_keeps_the_logs(
     else:
         result.assert_outcomes(passed=1)
         result.stdout.fnmatch_lines(
-            ["*metamorphic reports NOT written*", "*IsADirectoryError*--mt-resume*"]
+            [
+                "*metamorphic reports NOT written*",
+                "--mt-campaign-dir: *dedupe/report.json: could not write the campaign report "
+                "(Is a directory): a folder stands where the file must be*",
+                "*once the folder can be written, run again with --mt-campaign --mt-resume*",
+            ]
         )
         (pytester.path / "mt-campaigns" / "dedupe" / "report.json").rmdir()
     pytester.makeconftest("")
     resumed = _run(pytester, monkeypatch, "--mt-resume")
     resumed.assert_outcomes(passed=1)
     resumed.stdout.fnmatch_lines(["*(complete)*", "*sources read back from the logs*"])
+
+
+def test_a_campaign_folder_that_cannot_be_made_fails_clearly(
+    monkeypatch: pytest.MonkeyPatch, pytester: pytest.Pytester
+) -> None:
+    # Before: a raw OSError with 143 lines of traceback, and advice to free the space.
+    _write(pytester, sources=20)
+    (pytester.path / "runs").write_text("a file where the campaign folder must be")
+    result = _run(pytester, monkeypatch, "--mt-campaign-dir", "runs/campaigns")
+    assert result.ret == pytest.ExitCode.TESTS_FAILED
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(
+        [
+            "*campaign 'dedupe': runs/campaigns/dedupe: could not write campaign log *"
+            "a file stands where a folder must be*(--mt-campaign-dir names the folder*",
+            "*metamorphic reports NOT written*",
+            "--mt-campaign-dir: runs/campaigns/dedupe/report.json: could not write the "
+            "campaign report*",
+            "*ran: nothing (no source ran or was read back from the logs)*",
+        ]
+    )
+    said = result.stdout.str()
+    assert "Traceback" not in said and "free" not in said and "--mt-resume" not in said
+
+
+PASSING = """
+def test_plain():
+    assert True
+"""
+
+
+def test_a_report_that_cannot_be_written_without_a_campaign_names_the_option(
+    pytester: pytest.Pytester,
+) -> None:
+    # Before: the footer advised freeing the space and --mt-resume in a session with no
+    # campaign, and named the report's hidden temporary file.
+    pytester.makepyfile(test_p=PASSING)
+    (pytester.path / "out").write_text("a file where the report's folder must be")
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--mt-report", "out/r.json")
+    assert result.ret == pytest.ExitCode.TESTS_FAILED
+    result.stdout.fnmatch_lines(
+        [
+            "*metamorphic reports NOT written*",
+            "--mt-report: out/r.json: could not write the JSON report (*): a file stands "
+            "where a folder must be*",
+        ]
+    )
+    said = result.stdout.str()
+    assert "campaign logs" not in said and "--mt-resume" not in said and ".tmp" not in said
+
+
+def test_a_campaign_on_a_read_only_mount_says_read_only(pytester: pytest.Pytester) -> None:
+    from tests.read_only import run_on_a_read_only_mount
+
+    _write(pytester, sources=20)
+    (pytester.path / "ro").mkdir()
+    command = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--mt-campaign"]
+    said = run_on_a_read_only_mount(
+        pytester.path / "ro", [*command, "--mt-campaign-dir", "ro/camp"], cwd=pytester.path
+    )
+    assert "1 failed" in said, said
+    assert (
+        "campaign 'dedupe': ro/camp/dedupe: could not write campaign log "
+        "ro/camp/dedupe/shard-0-of-1.jsonl (Read-only file system): it is on a read-only file "
+        "system: choose a folder on a writable one (--mt-campaign-dir names" in said
+    )
+    assert "Traceback" not in said and "free" not in said and "--mt-resume" not in said

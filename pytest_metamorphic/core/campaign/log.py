@@ -32,7 +32,7 @@ from pytest_metamorphic.core.errors import (
     InvalidArgument,
     OtherSystemError,
 )
-from pytest_metamorphic.core.files import check_regular
+from pytest_metamorphic.core.files import check_regular, write_advice, write_error
 from pytest_metamorphic.core.locks import exclusive
 
 __all__ = [
@@ -278,7 +278,10 @@ class _Writer:
         # is the header the file already has (resume="any-system" keeps the old system).
         self.header = {**header, CHECKED: 1} if fresh else _file_header(path)
         self.path = path
-        self.handle = path.open("a", encoding="utf-8")
+        try:
+            self.handle = path.open("a", encoding="utf-8")
+        except OSError as error:
+            raise write_error(error, path, what="the campaign log") from None
         self.synced = time.monotonic()
         if fresh:
             self._line(self.header)
@@ -296,8 +299,9 @@ class _Writer:
         except OSError as error:
             raise CampaignLogError(
                 f"could not write the campaign log {self.path} ({error.strerror or error}); "
-                "the records written before are intact: free the space (or fix the folder) "
-                "and run again with --mt-resume to continue where it stopped"
+                f"the records written before are intact: {write_advice(error)}, then run "
+                "again with --mt-resume to continue where it stopped",
+                cause=error,
             ) from error
 
     def sync(self) -> None:

@@ -18,7 +18,6 @@ import functools
 import io
 import os
 import shutil
-import uuid
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, Literal
@@ -26,6 +25,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument, MetamorphicError
+from pytest_metamorphic.core.files import staging_sibling, write_error
 from pytest_metamorphic.lidar.model.cloud import COLUMNS, NonFinitePolicy, PointCloud
 
 __all__ = [
@@ -343,15 +343,26 @@ def records_from_cloud(
 
 
 @contextlib.contextmanager
-def replacing(path: str | os.PathLike[str], *, overwrite: bool) -> Iterator[Path]:
+def replacing(
+    path: str | os.PathLike[str], *, overwrite: bool, what: str = "file"
+) -> Iterator[Path]:
     """Yield a fresh path to write; move it onto ``path`` when the block succeeds.
 
     The yielded path has the same name as ``path`` inside a hidden sibling folder (ROS 2
     bag writers name their storage file after the folder). ``path`` may end up a file or
     a directory; an existing directory is only replaced when it is a ROS 2 bag.
+
+    Raises
+    ------
+    WriteError
+        The operating system refused a write (named: ``path``, with the cause's advice).
     """
     target = Path(path)
-    if target.exists() or target.is_symlink():
+    try:
+        present = target.exists() or target.is_symlink()
+    except OSError as error:  # a name too long for the file system
+        raise write_error(error, target, what=what) from None
+    if present:
         if not overwrite:
             raise InvalidArgument(f"{target} exists; pass overwrite=True to replace it")
         if target.is_dir() and not (target / "metadata.yaml").is_file():
@@ -360,13 +371,17 @@ def replacing(path: str | os.PathLike[str], *, overwrite: bool) -> Iterator[Path
             )
     if not target.parent.is_dir():
         raise InvalidArgument(f"cannot write {target}: folder {target.parent} does not exist")
-    staging = target.parent / f".{target.name}.{uuid.uuid4().hex[:8]}.tmp"
-    staging.mkdir()
+    staging = staging_sibling(target)
     try:
+        staging.mkdir()
         yield staging / target.name
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(staging / target.name, target)
+    except OSError as error:
+        if isinstance(error, MetamorphicError):
+            raise
+        raise write_error(error, target, what=what) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 

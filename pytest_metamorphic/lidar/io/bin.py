@@ -162,6 +162,6 @@ def write_bin(
             )
         columns.append(as_float[:, None])
     rows = np.ascontiguousarray(np.hstack(columns), dtype="<f4")
-    with replacing(target, overwrite=overwrite) as temporary:
+    with replacing(target, overwrite=overwrite, what="KITTI .bin file") as temporary:
         rows.tofile(temporary)
     return target

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import bisect
 import functools
-import glob
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
@@ -20,6 +19,7 @@ from typing import Any, Literal, overload
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.globbing import expand
 from pytest_metamorphic.lidar.io import detect_format, read_cloud, read_kitti_labels
 from pytest_metamorphic.lidar.io._common import ZerosPolicy, check_policies
 from pytest_metamorphic.lidar.io.rosbag import BagIndex, index_bag
@@ -224,7 +224,9 @@ def _expand(spec: str) -> Sequence[Path]:
     if path.is_file():
         detect_format(path)  # fail now, not at the first draw, for an unknown format
         return [path]
-    matches = sorted(Path(match) for match in glob.glob(spec, recursive=True))
+    # Each file once, however many symbolic links lead to it (a `self -> .` link made
+    # glob list one file 41 times, and two such links never ended).
+    matches = [Path(match) for match in expand(spec)]
     if not matches:
         raise InvalidArgument(f"path_or_glob={spec!r}: no such file or folder, and no glob match")
     for match in matches:

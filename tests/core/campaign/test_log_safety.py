@@ -314,7 +314,7 @@ def test_a_full_disk_fails_the_write_with_a_clear_error_and_keeps_the_log(tmp_pa
     )
     assert done.returncode != 0
     assert "CampaignLogError: could not write the campaign log" in done.stderr
-    assert "free the space" in done.stderr
+    assert "the largest size allowed" in done.stderr and "--mt-resume" in done.stderr
     resumed = run_campaign(campaign(Lossy()), log=log, resume=True)
     assert resumed.complete
     assert (

@@ -99,7 +99,7 @@ def test_messages_name_a_templates_file_not_the_folder_it_lies_in() -> None:
 def test_a_bad_library_is_named(tmp_path: Path) -> None:
     not_npz = tmp_path / "objects.npz"
     not_npz.write_text("hello")
-    with pytest.raises(DataError, match=r"objects\.npz.*not an object-template library"):
+    with pytest.raises(DataError, match=r"objects\.npz.*object-template library: not a zip"):
         load_templates(not_npz)
     other = tmp_path / "other.npz"
     np.savez(other, index=np.frombuffer(b'{"format": "x"}', dtype=np.uint8))

@@ -12,13 +12,14 @@ import dataclasses
 import json
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
+from pytest_metamorphic.core.files import write_atomically
+from pytest_metamorphic.core.npz import NpzArchive
 from pytest_metamorphic.lidar.followups.insert.template import ObjectTemplate
 from pytest_metamorphic.lidar.model.obstacles import LABELS
 
@@ -57,15 +58,12 @@ def save_templates(path: str | os.PathLike[str], templates: Sequence[ObjectTempl
         json.dumps({"format": _FORMAT, "templates": index}).encode(), dtype=np.uint8
     )
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=target.name, suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
+
+    def write(tmp: Path) -> None:
+        with tmp.open("wb") as handle:
             np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    write_atomically(target, write, what="the template library")
     return target
 
 
@@ -75,16 +73,18 @@ def load_templates(path: str | os.PathLike[str]) -> list[ObjectTemplate]:
     Raises
     ------
     DataError
-        Not such a file, or an array or field that does not fit (named).
+        Not such a file, or an array or field that does not fit (named); an array that
+        holds Python objects or declares more than :mod:`pytest_metamorphic.core.npz`'s
+        bounds is refused before it is read.
     """
     source = Path(path)
-    try:
-        archive = np.load(source, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as error:
-        raise DataError(f"not an object-template library: {error}", path=source) from None
-    with archive:
+    # Every member checked before numpy allocates it: no object arrays, no declared shape
+    # or inflated size past core.npz's bounds (a 4 MB file must not ask for 4 GiB).
+    with NpzArchive(source, what="object-template library") as archive:
         try:
             meta = json.loads(bytes(archive["index"]).decode())
+        except DataError:
+            raise
         except (KeyError, ValueError, UnicodeDecodeError):
             raise DataError(
                 "not an object-template library: no readable index", path=source
@@ -97,7 +97,7 @@ def load_templates(path: str | os.PathLike[str]) -> list[ObjectTemplate]:
         return [_template(archive, i, entry, source) for i, entry in enumerate(entries)]
 
 
-def _template(archive: np.lib.npyio.NpzFile, i: int, entry: object, source: Path) -> ObjectTemplate:
+def _template(archive: NpzArchive, i: int, entry: object, source: Path) -> ObjectTemplate:
     where = f"template {i}"
     try:
         vertices, faces, intensity = archive[f"v{i}"], archive[f"f{i}"], archive[f"i{i}"]

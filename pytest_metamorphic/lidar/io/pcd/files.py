@@ -158,7 +158,10 @@ def write_pcd(
     if "\n" in cloud.frame_id or "\r" in cloud.frame_id:
         raise InvalidArgument(f"frame_id {cloud.frame_id!r} has a line break; PCD cannot keep it")
     header = _header_text(cloud, records.dtype, data).encode("utf-8")
-    with replacing(path, overwrite=overwrite) as temporary, temporary.open("wb") as handle:
+    with (
+        replacing(path, overwrite=overwrite, what="PCD file") as temporary,
+        temporary.open("wb") as handle,
+    ):
         handle.write(header)
         if data == "binary":
             handle.write(records.tobytes())

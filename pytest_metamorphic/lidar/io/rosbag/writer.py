@@ -74,7 +74,7 @@ def write_bag(
     items = [clouds] if isinstance(clouds, PointCloud) else clouds
     ros1 = storage == "rosbag1"
     store = _typestore(ros1)
-    with replacing(target, overwrite=overwrite) as temporary:
+    with replacing(target, overwrite=overwrite, what="ROS bag") as temporary:
         writer = _writer(temporary, storage)
         with writer:
             connection = writer.add_connection(topic, POINTCLOUD2, typestore=store)
