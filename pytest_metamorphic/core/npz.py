@@ -13,6 +13,8 @@ file and the member, any member that
   own record of the member's inflated size;
 * would take the archive's reads past ``total_limit``.
 
+:func:`read_npy` reads a lone ``.npy`` file under the same checks.
+
 Only the declared bytes are ever inflated (zipfile stops at the size the archive
 records, and checks the CRC at the end), so memory stays bounded by the limits whatever
 the file holds.
@@ -32,7 +34,7 @@ import numpy as np
 from pytest_metamorphic.core.errors import DataError
 from pytest_metamorphic.core.files import open_regular
 
-__all__ = ["MAX_MEMBER_BYTES", "MAX_TOTAL_BYTES", "NpzArchive"]
+__all__ = ["MAX_MEMBER_BYTES", "MAX_TOTAL_BYTES", "NpzArchive", "read_npy"]
 
 MAX_MEMBER_BYTES = 256 * 2**20
 """The largest array read from an archive by default (256 MiB: a mesh of ten million
@@ -160,6 +162,38 @@ class NpzArchive:
         traceback: TracebackType | None,
     ) -> None:
         self.close()
+
+
+def read_npy(
+    path: str | os.PathLike[str], *, what: str = "NumPy array", limit: int = MAX_MEMBER_BYTES
+) -> np.ndarray:
+    """The array a ``.npy`` file holds, checked as an archive's member is (no Python
+    objects, a declared size within ``limit`` and within the file).
+
+    Raises
+    ------
+    DataError
+        Not a readable ``.npy`` file, or refused; the message names the file.
+    """
+    with open_regular(path, what=what) as handle:
+        size = os.fstat(handle.fileno()).st_size
+        try:
+            dtype, shape, fortran = _header(handle)
+        except _BROKEN as error:
+            raise DataError(f"{what} cannot be read ({error})", path=path) from None
+        if dtype.hasobject:
+            raise DataError(f"{what} holds Python objects (dtype {dtype})", path=path)
+        count = int(np.prod(shape, dtype=object))
+        nbytes = count * dtype.itemsize
+        if nbytes > limit or nbytes > size - handle.tell():
+            raise DataError(
+                f"{what} declares shape {shape} ({nbytes} bytes): more than the file holds "
+                f"or the {limit} bytes read",
+                path=path,
+            )
+        data = handle.read(nbytes)
+    array = np.frombuffer(data, dtype=dtype, count=count)
+    return array.reshape(shape, order="F" if fortran else "C")
 
 
 def _header(member: IO[bytes]) -> tuple[np.dtype, tuple[int, ...], bool]:

@@ -35,7 +35,7 @@ from typing import Any
 
 from pytest_metamorphic.core.comparison import describe_value
 from pytest_metamorphic.core.errors import DataError, InvalidArgument
-from pytest_metamorphic.core.files import field, read_json, staging_sibling
+from pytest_metamorphic.core.files import field, inside, read_json, staging_sibling
 from pytest_metamorphic.core.perturbation import as_reducible
 from pytest_metamorphic.reports.inputs import (
     RECORD,
@@ -66,6 +66,10 @@ __all__ = [
 FORMAT = "pytest-metamorphic violation artifact"
 VERSION = 1
 _MAX_ARRAY = 100_000
+# Perturbation arrays longer than this many rows go to a .npy file beside record.json,
+# which then names the file: 10^6 noise points written into the JSON made a 221 MB record
+# (twice: reduced and unreduced); the paper's sizes (10-1000) stay inline.
+INLINE_ROWS = 10_000
 # Perturbations that can be rebuilt from their JSON (type name -> module, class, field).
 _PERTURBATIONS = {
     "NoiseOutsideROI": ("pytest_metamorphic.lidar.followups.perturb", "points"),
@@ -123,7 +127,8 @@ def to_jsonable(value: Any, *, depth: int = 0) -> Any:
 
 
 def _decode_params(params: Mapping[str, Any], path: Path | None = None) -> dict[str, Any]:
-    """Transform parameters with known perturbations rebuilt as objects.
+    """Transform parameters with known perturbations rebuilt as objects (their arrays read
+    from the record's folder when saved apart, :data:`INLINE_ROWS`).
 
     Raises
     ------
@@ -131,9 +136,10 @@ def _decode_params(params: Mapping[str, Any], path: Path | None = None) -> dict[
         A perturbation or edit whose saved fields do not rebuild it (naming the parameter).
     """
     decoded: dict[str, Any] = {}
+    folder = None if path is None else path.parent
     for key, value in params.items():
         try:
-            decoded[key] = _decode_param(value)
+            decoded[key] = _decode_param(value, folder, "file")
         except DataError as error:
             raise DataError(f"params.{key}: {error}", path=path) from None
         except (KeyError, TypeError, ValueError, AttributeError) as error:
@@ -142,7 +148,7 @@ def _decode_params(params: Mapping[str, Any], path: Path | None = None) -> dict[
     return decoded
 
 
-def _decode_param(value: Any) -> Any:
+def _decode_param(value: Any, folder: Path | None, where: str) -> Any:
     import importlib
 
     import numpy as np
@@ -151,13 +157,56 @@ def _decode_param(value: Any) -> Any:
     if kind in _PERTURBATIONS:
         module, attribute = _PERTURBATIONS[kind]
         cls = getattr(importlib.import_module(module), kind)
-        array = np.asarray(value[attribute], dtype=np.float32 if attribute == "points" else int)
+        saved = _saved_array(value, folder, where) if "file" in value else None
+        raw = saved if saved is not None else value[attribute]
+        array = np.asarray(raw, dtype=np.float32 if attribute == "points" else int)
         if attribute == "points":
             array = array.reshape(-1, 4)
         return cls(array)
     if kind in _EDITS:
         return getattr(importlib.import_module(_EDITS[kind]), kind).from_json(value)
     return value
+
+
+def _saved_array(value: Mapping[str, Any], folder: Path | None, where: str) -> Any:
+    """The array a perturbation's ``file`` names, read from inside the record's folder."""
+    from pytest_metamorphic.core.npz import read_npy
+
+    if folder is None:
+        raise DataError(f"{where}: an array saved apart needs the record's folder")
+    path = inside(folder, value["file"], field=where, path=folder / RECORD)
+    array = read_npy(path, what=f"{where} ({value['file']})")
+    if array.dtype.kind not in "fiu":
+        raise DataError(f"{where}: holds {array.dtype}, not numbers", path=path)
+    return array
+
+
+def _spilled(value: Any, folder: Path, stem: str) -> dict[str, Any] | None:
+    """``value``'s JSON with its array in ``<stem>.npy`` beside the record, when it is a
+    known perturbation of more than :data:`INLINE_ROWS` rows; else None."""
+    import numpy as np
+
+    if type(value).__name__ not in _PERTURBATIONS:  # a reduction wraps its perturbation
+        value = getattr(value, "perturbation", value)
+    kind = type(value).__name__
+    if kind not in _PERTURBATIONS:
+        return None
+    array = np.asarray(getattr(value, _PERTURBATIONS[kind][1], ()))
+    if len(array) <= INLINE_ROWS:
+        return None
+    name = f"{stem}.npy"
+    np.save(folder / name, np.ascontiguousarray(array), allow_pickle=False)
+    return {"type": kind, "file": name, "rows": len(array)}
+
+
+def _params_json(params: Any, folder: Path, stem: str) -> Any:
+    """``params`` for the record, long perturbation arrays saved apart (:func:`_spilled`)."""
+    if not isinstance(params, Mapping):
+        return to_jsonable(params)
+    return {
+        str(key): _spilled(value, folder, f"{stem}.{_slug(str(key), 40)}") or to_jsonable(value)
+        for key, value in params.items()
+    }
 
 
 # -- writing ------------------------------------------------------------------------------------
@@ -177,16 +226,23 @@ def _boxes_or_none(value: Any) -> list[Any] | None:
     return None
 
 
-def _minimization_json(record: Any) -> dict[str, Any] | None:
+def _minimization_json(record: Any, folder: Path) -> dict[str, Any] | None:
+    import numpy as np
+
     reduction = record.reduction
     if reduction is None:
         return None
-    perturbation = to_jsonable(reduction.perturbation)
+    perturbation = _spilled(reduction.perturbation, folder, "minimization.perturbation")
+    kept: dict[str, Any] = {"indices": list(reduction.indices)}
+    if len(reduction.indices) > INLINE_ROWS:
+        name = "minimization.indices.npy"
+        np.save(folder / name, np.asarray(reduction.indices, dtype=np.int64), allow_pickle=False)
+        kept = {"indices_file": name}
     return {
         "key": reduction.key,
         "original_size": reduction.original_size,
         "size": reduction.size,
-        "indices": list(reduction.indices),
+        **kept,
         "proven_minimal": reduction.proven_minimal,
         "sut_calls": reduction.calls,
         "budget": reduction.budget,
@@ -195,7 +251,7 @@ def _minimization_json(record: Any) -> dict[str, Any] | None:
         "crashes": reduction.crashes,
         "fails_without_elements": reduction.fails_without_elements,
         "summary": reduction.summary(),
-        "perturbation": perturbation,
+        "perturbation": perturbation or to_jsonable(reduction.perturbation),
     }
 
 
@@ -312,9 +368,9 @@ def _fill(
         "explanation_unreduced": record.verdict.explanation,
         "details": to_jsonable(record.minimal_verdict.details),
         "seed": to_jsonable(record.seed),
-        "params": to_jsonable(followup.params),
-        "params_unreduced": to_jsonable(record.followup.params),
-        "minimization": _minimization_json(record),
+        "params": _params_json(followup.params, folder, "params"),
+        "params_unreduced": _params_json(record.followup.params, folder, "params_unreduced"),
+        "minimization": _minimization_json(record, folder),
         "minimization_note": record.reduction_note,
         "sut_calls": {
             "test": sut_calls,

@@ -384,3 +384,42 @@ def test_object_edit_violations_replay_from_their_artifacts(
     assert replay(artifact, test._metamorphic).still_fails
     fixed = _edit_test(ReferencePerception(), relation, frame)
     assert not replay(artifact, fixed._metamorphic).still_fails
+
+
+def test_a_large_reduction_keeps_its_record_small_and_replays(tmp_path: Path) -> None:
+    # Before: every noise point was written into record.json twice as indented JSON (221 MB
+    # for 10^6 points). Above INLINE_ROWS the arrays go to .npy files the record names.
+    n = 3 * artifacts.INLINE_ROWS
+
+    def loses_everything_with_noise(frame: Any) -> Any:
+        boxes = ReferencePerception()(frame)
+        return [] if len(frame.cloud) > len(kitti(1).cloud) else boxes
+
+    @settings(database=None, derandomize=True, max_examples=1, phases=[Phase.generate])
+    @metamorphic(source=st.just(kitti(1)), relations=[mr1_subset(n=n)], followups=1)
+    def test_big(frame):
+        return loses_everything_with_noise(frame)
+
+    writer, violation = run_saving(test_big, tmp_path)
+    folder = writer.written[-1]
+    record = json.loads((folder / "record.json").read_text())
+    assert (folder / "record.json").stat().st_size < 200_000
+    unreduced = record["params_unreduced"]["noise_outside_roi"]
+    assert unreduced["rows"] > artifacts.INLINE_ROWS and "points" not in unreduced
+    saved = np.load(folder / unreduced["file"])
+    drawn = violation.record.followup.params["noise_outside_roi"].points
+    np.testing.assert_array_equal(saved, drawn)
+    assert record["params"]["noise_outside_roi"]["points"]  # the minimal one, small, inline
+    followup = load_artifact(folder).followup()
+    minimal = violation.record.reduction.perturbation.points
+    np.testing.assert_array_equal(followup.params["noise_outside_roi"].points, minimal)
+
+
+def test_a_saved_array_is_read_only_from_inside_the_folder(tmp_path: Path) -> None:
+    record = {"type": "NoiseOutsideROI", "file": "../../etc/passwd", "rows": 5}
+    with pytest.raises(DataError, match="leaves the folder"):
+        artifacts._decode_params({"noise_outside_roi": record}, tmp_path / "record.json")
+    np.save(tmp_path / "p.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    record["file"] = "p.npy"
+    with pytest.raises(DataError, match="holds Python objects"):
+        artifacts._decode_params({"noise_outside_roi": record}, tmp_path / "record.json")
