@@ -404,6 +404,7 @@ def main() -> None:
     print(
         f"RESULT mutation_score={score:.4f} mutants={total} killed={killed_count} "
         f"relations={len(suite)} reference_violations={len(unsound)} "
+        f"false_alarms={sum(alarms.values())} "
         f"whole_scene_false_alarms={alarms['whole_scene']} known_weaknesses={known} "
         f"learned_false_alarms={alarms.get('cnnseg_roi', -1)} seconds={elapsed:.0f}"
     )
