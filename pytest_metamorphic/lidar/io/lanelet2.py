@@ -50,6 +50,11 @@ class Lanelet:
         return np.concatenate([self.left, self.right[::-1]])
 
 
+MAX_LOCAL_M = 1e6
+"""The farthest a node's ``local_x`` / ``local_y`` may lie from the map's origin (1000 km:
+a map's local frame covers a city; beyond, polygon areas lose their precision)."""
+
+
 def read_lanelet2(
     path: str | os.PathLike[str], *, origin: tuple[float, float] | None = None
 ) -> tuple[Lanelet, ...]:
@@ -116,6 +121,14 @@ def _node_positions(
                 ) from None
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise DataError(f"node {node.id}: local_x/local_y are not finite", path=data.path)
+            if max(abs(x), abs(y)) > MAX_LOCAL_M:
+                # A point at 1e308 m made every polygon's area overflow: refused as
+                # "collinear", naming neither the map nor the point.
+                raise DataError(
+                    f"node {node.id}: local_x/local_y = ({x:.6g}, {y:.6g}) lies more than "
+                    f"{MAX_LOCAL_M:.0f} m from the map's origin",
+                    path=data.path,
+                )
             positions[node.id] = np.array([x, y])
         return positions
     if not nodes:

@@ -174,3 +174,12 @@ def test_the_whole_sweep_roi_runs_mr1_and_says_when_it_tested_nothing(
         ["*tested nothing: no follow-up could be made (noise outside the ROI: the ROI leaves "
          "no room outside it within 120 m*", "*NOTHING TESTED by 1 relation(s)*"]
     )  # fmt: skip
+
+
+def test_a_node_far_outside_the_maps_frame_is_named(tmp_path: Path) -> None:
+    # Before: a point at 1e308 made the lane's area overflow, refused as "zero area
+    # (collinear)" naming neither the map nor the point.
+    path = _write_map(tmp_path / "lanelet2_map.osm")
+    path.write_text(path.read_text().replace('k="local_x" v="200"', 'k="local_x" v="1e308"', 1))
+    with pytest.raises(DataError, match=r"lanelet2_map\.osm: node 2: .*\(1e\+308, 50\) lies more"):
+        read_lanelet2(path)
