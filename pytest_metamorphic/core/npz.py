@@ -109,14 +109,7 @@ class NpzArchive:
         try:
             with self._zip.open(info) as member:
                 dtype, shape, fortran = _header(member)
-                if dtype.hasobject:
-                    raise DataError(
-                        f"{self.what}: {where} holds Python objects (dtype {dtype}); only "
-                        "plain numeric arrays are read (no pickles)",
-                        path=self.path,
-                    )
-                count = int(np.prod(shape, dtype=object))
-                nbytes = count * dtype.itemsize
+                count, nbytes = _declared(dtype, shape, f"{self.what}: {where}", self.path)
                 if nbytes > self.member_limit:
                     raise self._refused(where, f"declares shape {shape} ({nbytes} bytes)")
                 if nbytes > info.file_size:
@@ -137,8 +130,7 @@ class NpzArchive:
             ) from None
         if len(data) != nbytes:
             raise DataError(f"{self.what}: {where} is cut short", path=self.path)
-        array = np.frombuffer(data, dtype=dtype, count=count)
-        return array.reshape(shape, order="F" if fortran else "C")
+        return _array(data, dtype, count, shape, fortran)
 
     def _refused(self, where: str, reason: str, limit: int | None = None) -> DataError:
         bound = self.member_limit if limit is None else limit
@@ -181,10 +173,7 @@ def read_npy(
             dtype, shape, fortran = _header(handle)
         except _BROKEN as error:
             raise DataError(f"{what} cannot be read ({error})", path=path) from None
-        if dtype.hasobject:
-            raise DataError(f"{what} holds Python objects (dtype {dtype})", path=path)
-        count = int(np.prod(shape, dtype=object))
-        nbytes = count * dtype.itemsize
+        count, nbytes = _declared(dtype, shape, what, path)
         if nbytes > limit or nbytes > size - handle.tell():
             raise DataError(
                 f"{what} declares shape {shape} ({nbytes} bytes): more than the file holds "
@@ -192,8 +181,30 @@ def read_npy(
                 path=path,
             )
         data = handle.read(nbytes)
-    array = np.frombuffer(data, dtype=dtype, count=count)
-    return array.reshape(shape, order="F" if fortran else "C")
+    return _array(data, dtype, count, shape, fortran)
+
+
+def _declared(
+    dtype: np.dtype, shape: tuple[int, ...], label: str, path: str | os.PathLike[str]
+) -> tuple[int, int]:
+    """(elements, bytes) a header declares, refusing Python objects (read only by
+    unpickling)."""
+    if dtype.hasobject:
+        raise DataError(
+            f"{label} holds Python objects (dtype {dtype}); only plain numeric arrays are "
+            "read (no pickles)",
+            path=path,
+        )
+    count = int(np.prod(shape, dtype=object))  # Python ints: no overflow at 10^12 x 3
+    return count, count * dtype.itemsize
+
+
+def _array(
+    data: bytes, dtype: np.dtype, count: int, shape: tuple[int, ...], fortran: bool
+) -> np.ndarray:
+    return np.frombuffer(data, dtype=dtype, count=count).reshape(
+        shape, order="F" if fortran else "C"
+    )
 
 
 def _header(member: IO[bytes]) -> tuple[np.dtype, tuple[int, ...], bool]:
